@@ -1,0 +1,65 @@
+#pragma once
+// Residual (6) of the paper for RGB-D keypoints: the reprojection error of a world point in the
+// image, extended (as in ORB-SLAM2) by the virtual right-camera coordinate u_r = u - bf / z when
+// the keypoint has a depth. Residuals are whitened by 1 / sigma of the keypoint's pyramid level.
+// Analytic Jacobians with respect to the pose block (7, see se3_manifold.hpp) and the point.
+
+#include <ceres/sized_cost_function.h>
+
+#include "mcslam/core/camera.hpp"
+
+namespace mcslam::optim {
+
+/// What one keypoint says about a world point.
+struct PointMeasurement {
+  Eigen::Vector2d uv = Eigen::Vector2d::Zero();
+  double u_right = 0.0;      // virtual right-camera u; used only when with_depth
+  bool with_depth = false;   // false: a 2D (u, v) residual
+  double information = 1.0;  // 1 / sigma^2 of the keypoint's level
+  bool has_depth() const { return with_depth; }
+};
+
+/// p_c = R(q) p_w + t, written for unit quaternions so that its ambient derivative is exact.
+Eigen::Vector3d transform_point(const double* pose, const Eigen::Vector3d& p_w);
+/// d p_c / d pose (3x7) and d p_c / d p_w (3x3).
+void transform_point_jacobians(const double* pose, const Eigen::Vector3d& p_w,
+                               Eigen::Matrix<double, 3, 7>* d_pose, Eigen::Matrix3d* d_point);
+
+/// Residual of kDim = 3 (u, v, u_r) or 2 (u, v) for a pose and a point.
+template <int kDim>
+class ReprojectionError final : public ceres::SizedCostFunction<kDim, 7, 3> {
+ public:
+  ReprojectionError(const PinholeCamera& camera, const PointMeasurement& m);
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override;
+
+ private:
+  double fx_, fy_, cx_, cy_, bf_;
+  Eigen::Matrix<double, kDim, 1> observed_;
+  double sqrt_information_;
+};
+
+/// The same residual with the point held fixed (pose-only optimisation).
+template <int kDim>
+class PoseOnlyReprojectionError final : public ceres::SizedCostFunction<kDim, 7> {
+ public:
+  PoseOnlyReprojectionError(const PinholeCamera& camera, const PointMeasurement& m,
+                            const Eigen::Vector3d& p_w);
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override;
+
+ private:
+  ReprojectionError<kDim> full_;
+  Eigen::Vector3d p_w_;
+};
+
+/// The unwhitened squared error of a measurement for a camera point (for chi-square tests).
+double reprojection_chi2(const PinholeCamera& camera, const PointMeasurement& m,
+                         const Eigen::Vector3d& p_c);
+
+extern template class ReprojectionError<2>;
+extern template class ReprojectionError<3>;
+extern template class PoseOnlyReprojectionError<2>;
+extern template class PoseOnlyReprojectionError<3>;
+
+}  // namespace mcslam::optim

@@ -1,0 +1,72 @@
+#pragma once
+
+#include <optional>
+#include <string>
+
+#include "mcslam/features/orb.hpp"
+#include "mcslam/optim/bundle_adjustment.hpp"
+#include "mcslam/optim/pose_optimizer.hpp"
+
+namespace mcslam::slam {
+
+struct TrackerOptions {
+  /// Depths closer than close_depth_factor * bf / fx metres are "close" (ORB-SLAM2's ThDepth).
+  double close_depth_factor = 40.0;
+  /// Depth values outside [min_depth, max_depth] metres are treated as missing.
+  double min_depth = 0.1;
+  double max_depth = 10.0;
+  /// Projection search radius (px at level 0, scaled by the keypoint's level) against the last
+  /// frame; doubled once when too few matches are found.
+  double motion_search_radius = 15.0;
+  /// Hamming thresholds: strict for projection matches, loose for local-map matches.
+  int max_descriptor_distance = 100;
+  int strict_descriptor_distance = 50;
+  double local_map_ratio = 0.8;
+  int min_motion_matches = 20;
+  int min_pose_inliers = 10;
+  int min_local_map_inliers = 30;
+  int min_relocalisation_inliers = 50;
+  /// Local map: keyframes sharing points with the frame, plus neighbours, at most this many.
+  int max_local_keyframes = 60;
+  /// Keyframe decision (ORB-SLAM2's rules for RGB-D).
+  int max_frames_between_keyframes = 30;
+  double keyframe_ref_ratio = 0.75;
+  int close_tracked_threshold = 100;
+  int close_untracked_threshold = 70;
+  /// Relocalisation: keyframes tried per lost frame.
+  int relocalisation_candidates = 30;
+  /// Frames that need this many keypoints with depth to start the map.
+  int min_initial_points = 500;
+  optim::PoseOptimizerOptions pose;
+
+  std::optional<std::string> check() const;
+};
+
+struct MapperOptions {
+  /// New points from depth per keyframe: all close ones, and at least this many overall.
+  int min_new_points = 100;
+  /// Keyframes whose neighbours' points are fused into a new keyframe.
+  int fuse_neighbours = 10;
+  double fuse_radius = 3.0;
+  /// Local BA: covisible keyframes optimised together with the new one.
+  int ba_keyframes = 20;
+  int min_covisibility_weight = 15;
+  /// A keyframe is redundant when this fraction of its close points is seen by >= 3 others.
+  double redundant_ratio = 0.9;
+  bool cull_keyframes = true;
+  optim::BundleAdjustmentOptions ba;
+
+  std::optional<std::string> check() const;
+};
+
+struct SystemOptions {
+  features::OrbOptions orb;
+  TrackerOptions tracker;
+  MapperOptions mapper;
+  /// Run local mapping inline after each keyframe (deterministic) instead of on its own thread.
+  bool sequential = false;
+
+  std::optional<std::string> check() const;
+};
+
+}  // namespace mcslam::slam

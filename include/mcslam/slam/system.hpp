@@ -1,0 +1,90 @@
+#pragma once
+// The SLAM system facade: feed RGB-D frames, read poses, the map and timings.
+//
+//   System system(camera, options);
+//   for (...) { FrameResult r = system.process(rgb, depth_metres, timestamp); }
+//   system.finish();
+//   Trajectory t = system.trajectory();
+
+#include <memory>
+#include <opencv2/core.hpp>
+#include <optional>
+#include <vector>
+
+#include "mcslam/core/camera.hpp"
+#include "mcslam/core/timing.hpp"
+#include "mcslam/core/trajectory.hpp"
+#include "mcslam/map/map.hpp"
+#include "mcslam/slam/options.hpp"
+#include "mcslam/slam/tracker.hpp"
+
+namespace mcslam::io {
+class Undistorter;
+}
+
+namespace mcslam::slam {
+
+class FrameBuilder;
+class LocalMapper;
+
+struct FrameResult {
+  std::uint64_t frame_id = 0;
+  double timestamp = 0.0;
+  TrackingState state = TrackingState::kNotInitialized;
+  bool relocalised = false;
+  bool keyframe = false;
+  int features = 0;
+  int matches = 0;
+  int inliers = 0;
+  std::optional<SE3> T_w_c;  // when tracked
+  StageTimes times;          // what the caller waited for, per stage
+};
+
+class System {
+ public:
+  /// Throws InputError when the camera or the options are invalid.
+  System(const PinholeCamera& camera, const SystemOptions& options);
+  ~System();
+  System(const System&) = delete;
+  System& operator=(const System&) = delete;
+
+  /// One frame: `rgb` is CV_8UC3 (BGR) or CV_8UC1, `depth` CV_32FC1 in metres (0 = missing),
+  /// both raw (undistorted here when the camera has distortion) and of the camera's size.
+  /// Never throws for image content; a frame of the wrong size or type is reported as lost.
+  FrameResult process(const cv::Mat& rgb, const cv::Mat& depth, double timestamp);
+
+  /// Lets the mapper finish its queue. Call before reading the final trajectory.
+  void finish();
+
+  /// Tracked frames, each placed relative to its reference keyframe's final (refined) pose.
+  Trajectory trajectory() const;
+  Trajectory keyframe_trajectory() const;
+  /// The map (read it under map().read_lock() while the system runs threaded).
+  const map::Map& map() const { return *map_; }
+  /// Stage times of each processed keyframe in the mapper.
+  std::vector<StageTimes> mapper_times() const;
+  const PinholeCamera& camera() const { return camera_; }
+  const SystemOptions& options() const { return options_; }
+
+ private:
+  struct FrameRecord {
+    double timestamp = 0.0;
+    bool tracked = false;
+    map::KeyFrameId reference = map::kNoId;
+    SE3 T_c_ref;
+    SE3 T_c_w;  // at tracking time, used when the reference cannot be resolved
+  };
+
+  PinholeCamera camera_;
+  SystemOptions options_;
+  std::unique_ptr<io::Undistorter> undistorter_;
+  std::unique_ptr<FrameBuilder> builder_;
+  std::unique_ptr<map::Map> map_;
+  std::unique_ptr<Tracker> tracker_;
+  std::unique_ptr<LocalMapper> mapper_;
+  std::vector<FrameRecord> records_;
+  std::uint64_t next_frame_id_ = 0;
+  bool finished_ = false;
+};
+
+}  // namespace mcslam::slam

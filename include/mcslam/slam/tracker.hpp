@@ -1,0 +1,122 @@
+#pragma once
+// Tracking: estimates the pose of each frame against the last frame and the local map, decides
+// keyframes, and relocalises when lost. It reads the map (shared lock) and never writes it:
+// everything the map should learn travels in a KeyFrameRequest to the local mapper.
+
+#include <cstdint>
+#include <optional>
+#include <vector>
+
+#include "mcslam/core/camera.hpp"
+#include "mcslam/core/timing.hpp"
+#include "mcslam/map/map.hpp"
+#include "mcslam/slam/frame.hpp"
+#include "mcslam/slam/options.hpp"
+
+namespace mcslam::slam {
+
+enum class TrackingState { kNotInitialized, kOk, kLost };
+const char* to_string(TrackingState state);
+
+/// Tracking statistics of a landmark between two keyframes (for the mapper's culling).
+struct PointStatistics {
+  map::PointId point = map::kNoId;
+  int visible = 0;
+  int found = 0;
+};
+
+/// A new keyframe for the mapper: the frame, its pose and its inlier landmark associations.
+struct KeyFrameRequest {
+  map::KeyFrameId id = map::kNoId;
+  Frame frame;
+  SE3 T_c_w;
+  std::vector<map::PointId> landmarks;  // per feature of frame (kNoId where none)
+  std::vector<PointStatistics> statistics;
+};
+
+struct TrackingOutcome {
+  TrackingState state = TrackingState::kNotInitialized;
+  bool relocalised = false;
+  SE3 T_c_w;                               // valid when state == kOk
+  map::KeyFrameId reference = map::kNoId;  // keyframe the pose is stored relative to
+  SE3 T_c_ref;                             // pose relative to that keyframe
+  int matches = 0;                         // features matched (landmarks and depth points)
+  int inliers = 0;                         // after the final pose optimisation
+  std::optional<KeyFrameRequest> keyframe;
+};
+
+class Tracker {
+ public:
+  Tracker(const PinholeCamera& camera, const TrackerOptions& options, const map::Map& map);
+
+  /// `mapper_idle`: the mapper has nothing queued; `mapper_queue`: keyframes waiting for it.
+  TrackingOutcome track(const Frame& frame, bool mapper_idle, std::size_t mapper_queue,
+                        StageTimes* times = nullptr);
+
+  TrackingState state() const { return state_; }
+
+ private:
+  struct Match {
+    map::PointId landmark = map::kNoId;  // kNoId: a point of the last frame's depth
+    Eigen::Vector3d p_w = Eigen::Vector3d::Zero();
+    bool active = false;
+    bool outlier = false;
+  };
+  /// What the next frame needs of this one: features, pose (relative to a keyframe, so that it
+  /// follows bundle adjustment) and, per feature, its landmark or its camera-frame depth point.
+  struct LastFrame {
+    Frame frame;
+    map::KeyFrameId reference = map::kNoId;
+    SE3 T_c_ref;
+    SE3 T_c_w;
+    std::vector<map::PointId> landmarks;
+    std::vector<std::optional<Eigen::Vector3d>> depth_points;  // camera frame
+  };
+
+  TrackingOutcome initialize(const Frame& frame);
+  bool track_last_frame(const Frame& frame, const SE3& prediction, std::vector<Match>& matches,
+                        SE3& T_c_w);
+  bool track_reference_keyframe(const Frame& frame, std::vector<Match>& matches, SE3& T_c_w);
+  bool relocalise(const Frame& frame, std::vector<Match>& matches, SE3& T_c_w);
+  /// Adds local-map matches and re-optimises. Returns the inlier count.
+  int track_local_map(const Frame& frame, std::vector<Match>& matches, SE3& T_c_w,
+                      double radius_factor);
+  int search_last_frame(const Frame& frame, const SE3& T_c_w, double radius,
+                        std::vector<Match>& matches) const;
+  int search_local_points(const Frame& frame, const SE3& T_c_w, double radius_factor,
+                          std::vector<Match>& matches);
+  int optimize(const Frame& frame, std::vector<Match>& matches, SE3& T_c_w) const;
+  void update_local_map(const std::vector<Match>& matches);
+  bool need_keyframe(const Frame& frame, const std::vector<Match>& matches, int inliers,
+                     bool mapper_idle, std::size_t mapper_queue) const;
+  KeyFrameRequest make_keyframe(const Frame& frame, const std::vector<Match>& matches,
+                                const SE3& T_c_w);
+  void remember_last_frame(const Frame& frame, const std::vector<Match>& matches, const SE3& T_c_w,
+                           map::KeyFrameId reference);
+  std::optional<SE3> last_frame_pose() const;
+  /// Pose of a keyframe in the map, or of one still queued for the mapper.
+  std::optional<SE3> keyframe_pose(map::KeyFrameId id) const;
+  double close_depth() const { return options_.close_depth_factor * camera_.bf / camera_.fx; }
+
+  PinholeCamera camera_;
+  TrackerOptions options_;
+  const map::Map& map_;
+
+  TrackingState state_ = TrackingState::kNotInitialized;
+  std::optional<LastFrame> last_;
+  std::optional<SE3> velocity_;  // T_cur_last of the last tracked step
+  map::KeyFrameId next_keyframe_id_ = 0;
+  map::KeyFrameId last_keyframe_ = map::kNoId;
+  std::uint64_t last_keyframe_frame_ = 0;
+  std::uint64_t last_relocalisation_frame_ = 0;
+  // Local map of the current frame.
+  map::KeyFrameId reference_ = map::kNoId;
+  std::vector<map::KeyFrameId> local_keyframes_;
+  std::vector<map::PointId> local_points_;
+  // Poses of keyframes requested but possibly not yet in the map.
+  std::unordered_map<map::KeyFrameId, SE3> pending_keyframes_;
+  // Statistics gathered since the last keyframe request.
+  std::unordered_map<map::PointId, PointStatistics> statistics_;
+};
+
+}  // namespace mcslam::slam

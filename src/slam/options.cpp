@@ -1,0 +1,45 @@
+#include "mcslam/slam/options.hpp"
+
+namespace mcslam::slam {
+
+std::optional<std::string> TrackerOptions::check() const {
+  if (!(close_depth_factor > 0.0)) return "tracker.close_depth_factor must be positive";
+  if (!(min_depth >= 0.0) || !(max_depth > min_depth))
+    return "tracker.min_depth must be >= 0 and below tracker.max_depth";
+  if (!(motion_search_radius > 0.0)) return "tracker.motion_search_radius must be positive";
+  if (max_descriptor_distance < 1 || max_descriptor_distance > 256 ||
+      strict_descriptor_distance < 1 || strict_descriptor_distance > max_descriptor_distance)
+    return "tracker descriptor distances must satisfy 1 <= strict <= max <= 256";
+  if (!(local_map_ratio > 0.0 && local_map_ratio <= 1.0))
+    return "tracker.local_map_ratio must be in (0, 1]";
+  if (min_motion_matches < 3 || min_pose_inliers < 3 || min_local_map_inliers < 3 ||
+      min_relocalisation_inliers < 3)
+    return "tracker minimum match and inlier counts must be at least 3";
+  if (max_local_keyframes < 1) return "tracker.max_local_keyframes must be at least 1";
+  if (max_frames_between_keyframes < 1)
+    return "tracker.max_frames_between_keyframes must be at least 1";
+  if (!(keyframe_ref_ratio > 0.0 && keyframe_ref_ratio <= 1.0))
+    return "tracker.keyframe_ref_ratio must be in (0, 1]";
+  if (relocalisation_candidates < 1) return "tracker.relocalisation_candidates must be >= 1";
+  if (min_initial_points < 10) return "tracker.min_initial_points must be at least 10";
+  return pose.check();
+}
+
+std::optional<std::string> MapperOptions::check() const {
+  if (min_new_points < 0) return "mapper.min_new_points must not be negative";
+  if (fuse_neighbours < 0) return "mapper.fuse_neighbours must not be negative";
+  if (!(fuse_radius > 0.0)) return "mapper.fuse_radius must be positive";
+  if (ba_keyframes < 1) return "mapper.ba_keyframes must be at least 1";
+  if (min_covisibility_weight < 1) return "mapper.min_covisibility_weight must be at least 1";
+  if (!(redundant_ratio > 0.0 && redundant_ratio <= 1.0))
+    return "mapper.redundant_ratio must be in (0, 1]";
+  return ba.check();
+}
+
+std::optional<std::string> SystemOptions::check() const {
+  if (auto e = orb.check()) return e;
+  if (auto e = tracker.check()) return e;
+  return mapper.check();
+}
+
+}  // namespace mcslam::slam

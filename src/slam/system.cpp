@@ -1,0 +1,117 @@
+#include "mcslam/slam/system.hpp"
+
+#include <opencv2/imgproc.hpp>
+
+#include "mcslam/core/error.hpp"
+#include "mcslam/io/undistort.hpp"
+#include "mcslam/slam/frame.hpp"
+#include "mcslam/slam/local_mapper.hpp"
+
+namespace mcslam::slam {
+
+System::System(const PinholeCamera& camera, const SystemOptions& options)
+    : camera_(camera), options_(options) {
+  if (auto e = camera.check()) throw InputError("camera: " + *e);
+  if (auto e = options.check()) throw InputError("options: " + *e);
+  undistorter_ = std::make_unique<io::Undistorter>(camera_);
+  builder_ = std::make_unique<FrameBuilder>(camera_, options_.orb, options_.tracker.min_depth,
+                                            options_.tracker.max_depth);
+  map_ = std::make_unique<map::Map>();
+  tracker_ = std::make_unique<Tracker>(camera_, options_.tracker, *map_);
+  const double close_depth = options_.tracker.close_depth_factor * camera_.bf / camera_.fx;
+  mapper_ = std::make_unique<LocalMapper>(camera_, options_.mapper, close_depth, *map_);
+  if (!options_.sequential) mapper_->start();
+}
+
+System::~System() { finish(); }
+
+FrameResult System::process(const cv::Mat& rgb, const cv::Mat& depth, double timestamp) {
+  FrameResult result;
+  result.frame_id = next_frame_id_++;
+  result.timestamp = timestamp;
+  FrameRecord record;
+  record.timestamp = timestamp;
+
+  const bool valid_rgb =
+      !rgb.empty() && rgb.depth() == CV_8U && (rgb.channels() == 3 || rgb.channels() == 1);
+  const bool valid_depth = !depth.empty() && depth.type() == CV_32FC1;
+  if (!valid_rgb || !valid_depth || rgb.cols != camera_.width || rgb.rows != camera_.height ||
+      depth.size() != rgb.size() || finished_) {
+    result.state = TrackingState::kLost;
+    records_.push_back(record);
+    return result;
+  }
+
+  Stopwatch watch;
+  cv::Mat gray;
+  if (rgb.channels() == 3)
+    cv::cvtColor(rgb, gray, cv::COLOR_BGR2GRAY);
+  else
+    gray = rgb;
+  gray = undistorter_->apply_rgb(gray);
+  const cv::Mat undistorted_depth = undistorter_->apply_depth(depth);
+  result.times.add("undistort", watch.elapsed_ms());
+
+  watch.restart();
+  const Frame frame = builder_->build(result.frame_id, timestamp, gray, undistorted_depth);
+  result.features = static_cast<int>(frame.features->points.size());
+  result.times.add("orb_extract", watch.elapsed_ms());
+
+  const bool sequential = options_.sequential;
+  TrackingOutcome outcome = tracker_->track(frame, sequential || mapper_->idle(),
+                                            sequential ? 0 : mapper_->queue_size(), &result.times);
+  result.state = outcome.state;
+  result.relocalised = outcome.relocalised;
+  result.matches = outcome.matches;
+  result.inliers = outcome.inliers;
+  if (outcome.state == TrackingState::kOk) {
+    result.T_w_c = outcome.T_c_w.inverse();
+    record.tracked = true;
+    record.reference = outcome.reference;
+    record.T_c_ref = outcome.T_c_ref;
+    record.T_c_w = outcome.T_c_w;
+  }
+  if (outcome.keyframe) {
+    result.keyframe = true;
+    if (sequential) {
+      StageTimes mapper_times;
+      mapper_->process(std::move(*outcome.keyframe), &mapper_times);
+      for (auto& stage : mapper_times.stages) result.times.add(stage.first, stage.second);
+    } else {
+      mapper_->enqueue(std::move(*outcome.keyframe));
+    }
+  }
+  records_.push_back(record);
+  return result;
+}
+
+void System::finish() {
+  if (finished_) return;
+  finished_ = true;
+  mapper_->finish();
+}
+
+Trajectory System::trajectory() const {
+  Trajectory out;
+  auto lock = map_->read_lock();
+  for (const FrameRecord& r : records_) {
+    if (!r.tracked) continue;
+    const auto T_ref_w = map_->keyframe_pose_T_c_w(r.reference);
+    const SE3 T_c_w = T_ref_w ? r.T_c_ref * (*T_ref_w) : r.T_c_w;
+    out.push_back({r.timestamp, T_c_w.inverse()});
+  }
+  return out;
+}
+
+Trajectory System::keyframe_trajectory() const {
+  Trajectory out;
+  auto lock = map_->read_lock();
+  for (const auto& [id, kf] : map_->keyframes()) out.push_back({kf.timestamp, kf.T_w_c()});
+  std::sort(out.begin(), out.end(),
+            [](const StampedPose& a, const StampedPose& b) { return a.timestamp < b.timestamp; });
+  return out;
+}
+
+std::vector<StageTimes> System::mapper_times() const { return mapper_->keyframe_times(); }
+
+}  // namespace mcslam::slam

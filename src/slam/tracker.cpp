@@ -1,0 +1,684 @@
+#include "mcslam/slam/tracker.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <opencv2/calib3d.hpp>
+#include <unordered_set>
+
+#include "mcslam/features/matching.hpp"
+#include "mcslam/optim/pose_optimizer.hpp"
+
+namespace mcslam::slam {
+namespace {
+
+constexpr int kRotationBins = 30;
+
+/// Keeps the matches whose keypoint-angle change falls into the three most common bins of a
+/// histogram (ORB-SLAM2's rotation consistency); the others are dropped.
+class RotationHistogram {
+ public:
+  void add(int feature, float angle_from, float angle_to) {
+    float rot = angle_from - angle_to;
+    if (rot < 0.0f) rot += 360.0f;
+    int bin = static_cast<int>(std::lround(rot * kRotationBins / 360.0f));
+    if (bin == kRotationBins) bin = 0;
+    bins_[static_cast<std::size_t>(bin)].push_back(feature);
+  }
+  /// Features outside the dominant bins.
+  std::vector<int> inconsistent() const {
+    std::array<std::size_t, 3> top{0, 0, 0};
+    std::array<int, 3> idx{-1, -1, -1};
+    for (int i = 0; i < kRotationBins; ++i) {
+      const std::size_t n = bins_[static_cast<std::size_t>(i)].size();
+      if (n > top[0]) {
+        top = {n, top[0], top[1]};
+        idx = {i, idx[0], idx[1]};
+      } else if (n > top[1]) {
+        top = {top[0], n, top[1]};
+        idx = {idx[0], i, idx[1]};
+      } else if (n > top[2]) {
+        top[2] = n;
+        idx[2] = i;
+      }
+    }
+    // Secondary bins count only when they hold at least a tenth of the main one.
+    if (top[1] < top[0] / 10) idx[1] = -1;
+    if (top[2] < top[0] / 10) idx[2] = -1;
+    std::vector<int> out;
+    for (int i = 0; i < kRotationBins; ++i) {
+      if (i == idx[0] || i == idx[1] || i == idx[2]) continue;
+      const auto& b = bins_[static_cast<std::size_t>(i)];
+      out.insert(out.end(), b.begin(), b.end());
+    }
+    return out;
+  }
+
+ private:
+  std::array<std::vector<int>, kRotationBins> bins_;
+};
+
+optim::PointMeasurement measurement_of(const features::PointFeature& f,
+                                       const features::ScalePyramid& pyramid) {
+  optim::PointMeasurement m;
+  m.uv = f.keypoint.uv.cast<double>();
+  m.with_depth = f.has_depth();
+  m.u_right = f.u_right;
+  m.information = pyramid.inv_sigma2[static_cast<std::size_t>(f.keypoint.level)];
+  return m;
+}
+
+}  // namespace
+
+const char* to_string(TrackingState state) {
+  switch (state) {
+    case TrackingState::kNotInitialized:
+      return "not_initialized";
+    case TrackingState::kOk:
+      return "ok";
+    case TrackingState::kLost:
+      return "lost";
+  }
+  return "unknown";
+}
+
+Tracker::Tracker(const PinholeCamera& camera, const TrackerOptions& options, const map::Map& map)
+    : camera_(camera), options_(options), map_(map) {}
+
+TrackingOutcome Tracker::track(const Frame& frame, bool mapper_idle, std::size_t mapper_queue,
+                               StageTimes* times) {
+  Stopwatch watch;
+  if (state_ == TrackingState::kNotInitialized) {
+    TrackingOutcome out = initialize(frame);
+    if (times) times->add("track", watch.elapsed_ms());
+    return out;
+  }
+
+  std::vector<Match> matches(frame.features->points.size());
+  SE3 T_c_w;
+  bool ok = false;
+  bool relocalised = false;
+  if (state_ == TrackingState::kOk) {
+    const std::optional<SE3> T_last = last_frame_pose();
+    if (T_last) {
+      const SE3 prediction = velocity_ ? (*velocity_) * (*T_last) : *T_last;
+      ok = track_last_frame(frame, prediction, matches, T_c_w);
+      // A sudden motion breaks the constant-velocity model: retry from the last pose.
+      if (!ok && velocity_) {
+        std::fill(matches.begin(), matches.end(), Match{});
+        ok = track_last_frame(frame, *T_last, matches, T_c_w);
+      }
+    }
+    if (!ok) {
+      std::fill(matches.begin(), matches.end(), Match{});
+      ok = track_reference_keyframe(frame, matches, T_c_w);
+    }
+  } else {
+    ok = relocalise(frame, matches, T_c_w);
+    relocalised = ok;
+    if (ok) last_relocalisation_frame_ = frame.id;
+  }
+  if (times) times->add("track_frame", watch.elapsed_ms());
+
+  watch.restart();
+  int inliers = 0;
+  if (ok) {
+    const bool recent_reloc = frame.id < last_relocalisation_frame_ + 2;
+    inliers = track_local_map(frame, matches, T_c_w, recent_reloc ? 3.0 : 1.0);
+    const int needed = frame.id < last_relocalisation_frame_ + options_.max_frames_between_keyframes
+                           ? options_.min_relocalisation_inliers
+                           : options_.min_local_map_inliers;
+    ok = inliers >=
+         (relocalised || last_relocalisation_frame_ > 0 ? needed : options_.min_local_map_inliers);
+  }
+  if (times) times->add("track_local_map", watch.elapsed_ms());
+
+  TrackingOutcome out;
+  out.relocalised = relocalised && ok;
+  out.inliers = inliers;
+  for (const Match& m : matches) out.matches += m.active ? 1 : 0;
+  if (!ok) {
+    state_ = TrackingState::kLost;
+    velocity_.reset();
+    out.state = state_;
+    return out;
+  }
+
+  watch.restart();
+  if (const auto T_last = last_frame_pose(); T_last && state_ == TrackingState::kOk)
+    velocity_ = T_c_w * T_last->inverse();
+  else
+    velocity_.reset();
+  state_ = TrackingState::kOk;
+  out.state = state_;
+  out.T_c_w = T_c_w;
+  out.reference = reference_;
+  // The keyframe decision counts landmarks only (matches to the last frame's depth points say
+  // nothing about how well the map covers the view).
+  int landmark_inliers = 0;
+  for (const Match& m : matches)
+    landmark_inliers += m.active && !m.outlier && m.landmark != map::kNoId ? 1 : 0;
+  if (need_keyframe(frame, matches, landmark_inliers, mapper_idle, mapper_queue)) {
+    out.keyframe = make_keyframe(frame, matches, T_c_w);
+    out.reference = out.keyframe->id;
+  }
+  remember_last_frame(frame, matches, T_c_w, out.reference);
+  out.T_c_ref = last_->T_c_ref;
+  if (times) times->add("keyframe_decision", watch.elapsed_ms());
+  return out;
+}
+
+TrackingOutcome Tracker::initialize(const Frame& frame) {
+  TrackingOutcome out;
+  int with_depth = 0;
+  for (const auto& p : frame.features->points) with_depth += p.has_depth() ? 1 : 0;
+  if (with_depth < options_.min_initial_points) {
+    out.state = TrackingState::kNotInitialized;
+    return out;
+  }
+  state_ = TrackingState::kOk;
+  std::vector<Match> none(frame.features->points.size());
+  out.state = state_;
+  out.T_c_w = SE3();
+  out.keyframe = make_keyframe(frame, none, SE3());
+  out.reference = out.keyframe->id;
+  out.matches = 0;
+  out.inliers = with_depth;
+  remember_last_frame(frame, none, SE3(), out.reference);
+  out.T_c_ref = SE3();
+  return out;
+}
+
+std::optional<SE3> Tracker::keyframe_pose(map::KeyFrameId id) const {
+  {
+    auto lock = map_.read_lock();
+    if (auto T = map_.keyframe_pose_T_c_w(id)) return T;
+  }
+  if (const auto it = pending_keyframes_.find(id); it != pending_keyframes_.end())
+    return it->second;
+  return std::nullopt;
+}
+
+std::optional<SE3> Tracker::last_frame_pose() const {
+  if (!last_) return std::nullopt;
+  // Follow bundle adjustment: the last frame is stored relative to its reference keyframe.
+  if (const auto T_ref_w = keyframe_pose(last_->reference)) return last_->T_c_ref * (*T_ref_w);
+  return last_->T_c_w;
+}
+
+int Tracker::search_last_frame(const Frame& frame, const SE3& T_c_w, double radius,
+                               std::vector<Match>& matches) const {
+  const auto& last_points = last_->frame.features->points;
+  const auto& points = frame.features->points;
+  const auto& pyramid = *frame.features->pyramid;
+  std::vector<int> best_distance(points.size(), 256);
+  RotationHistogram histogram;
+  std::vector<int> candidates;
+  std::vector<int> source(points.size(), -1);
+  int count = 0;
+
+  // World positions of the last frame's points, landmarks read from the map.
+  const SE3 T_w_last = last_->T_c_w.inverse();
+  std::vector<std::optional<Eigen::Vector3d>> world(last_points.size());
+  {
+    auto lock = map_.read_lock();
+    for (std::size_t i = 0; i < last_points.size(); ++i) {
+      if (last_->landmarks[i] != map::kNoId) {
+        if (const map::MapPoint* mp = map_.point(last_->landmarks[i])) {
+          world[i] = mp->p_w;
+          continue;
+        }
+      }
+      if (last_->depth_points[i]) world[i] = T_w_last * (*last_->depth_points[i]);
+    }
+  }
+
+  for (std::size_t i = 0; i < last_points.size(); ++i) {
+    if (!world[i]) continue;
+    const Eigen::Vector3d p_c = T_c_w * (*world[i]);
+    if (p_c.z() <= 0.0) continue;
+    const Eigen::Vector2d uv = camera_.project(p_c);
+    if (!camera_.in_image(uv)) continue;
+    const int level = last_points[i].keypoint.level;
+    const double r = radius * pyramid.scale[static_cast<std::size_t>(level)];
+    frame.features->grid.query(static_cast<float>(uv.x()), static_cast<float>(uv.y()),
+                               static_cast<float>(r), std::max(0, level - 1), level + 1,
+                               candidates);
+    const double ur = camera_.right_u(uv.x(), p_c.z());
+    int best = 256;
+    int best_idx = -1;
+    for (int j : candidates) {
+      const auto& f = points[static_cast<std::size_t>(j)];
+      if (f.has_depth() && std::abs(ur - f.u_right) > r) continue;
+      const int d = features::hamming_distance(last_points[i].descriptor, f.descriptor);
+      if (d < best) {
+        best = d;
+        best_idx = j;
+      }
+    }
+    if (best_idx < 0 || best > options_.max_descriptor_distance) continue;
+    const auto j = static_cast<std::size_t>(best_idx);
+    if (best >= best_distance[j]) continue;  // keep the closest descriptor per feature
+    if (source[j] < 0) ++count;
+    best_distance[j] = best;
+    source[j] = static_cast<int>(i);
+    matches[j].landmark = last_->landmarks[i];
+    if (matches[j].landmark != map::kNoId && map_.point(matches[j].landmark) == nullptr)
+      matches[j].landmark = map::kNoId;
+    matches[j].p_w = *world[i];
+    matches[j].active = true;
+    matches[j].outlier = false;
+  }
+  for (std::size_t j = 0; j < points.size(); ++j)
+    if (source[j] >= 0)
+      histogram.add(static_cast<int>(j),
+                    last_points[static_cast<std::size_t>(source[j])].keypoint.angle_deg,
+                    points[j].keypoint.angle_deg);
+  for (int j : histogram.inconsistent()) {
+    matches[static_cast<std::size_t>(j)] = Match{};
+    --count;
+  }
+  return count;
+}
+
+bool Tracker::track_last_frame(const Frame& frame, const SE3& prediction,
+                               std::vector<Match>& matches, SE3& T_c_w) {
+  int n = search_last_frame(frame, prediction, options_.motion_search_radius, matches);
+  if (n < options_.min_motion_matches) {
+    std::fill(matches.begin(), matches.end(), Match{});
+    n = search_last_frame(frame, prediction, 2.0 * options_.motion_search_radius, matches);
+  }
+  if (n < options_.min_motion_matches) return false;
+  T_c_w = prediction;
+  return optimize(frame, matches, T_c_w) >= options_.min_pose_inliers;
+}
+
+bool Tracker::track_reference_keyframe(const Frame& frame, std::vector<Match>& matches,
+                                       SE3& T_c_w) {
+  const std::optional<SE3> T_last = last_frame_pose();
+  if (!T_last) return false;
+  auto lock = map_.read_lock();
+  const map::KeyFrame* ref =
+      map_.keyframe(reference_ != map::kNoId ? reference_ : map_.last_keyframe_id());
+  if (ref == nullptr) return false;
+  std::vector<features::OrbDescriptor> train;
+  std::vector<int> train_index;
+  for (std::size_t i = 0; i < ref->landmarks.size(); ++i)
+    if (ref->landmarks[i] != map::kNoId && map_.point(ref->landmarks[i]) != nullptr) {
+      train.push_back(ref->features->points[i].descriptor);
+      train_index.push_back(static_cast<int>(i));
+    }
+  std::vector<features::OrbDescriptor> query;
+  for (const auto& p : frame.features->points) query.push_back(p.descriptor);
+  const auto found =
+      features::match_descriptors(query, train, options_.max_descriptor_distance, 0.7f, true);
+  if (static_cast<int>(found.size()) < options_.min_motion_matches) return false;
+  for (const auto& m : found) {
+    const map::PointId id =
+        ref->landmarks[static_cast<std::size_t>(train_index[static_cast<std::size_t>(m.train)])];
+    Match& match = matches[static_cast<std::size_t>(m.query)];
+    match.landmark = id;
+    match.p_w = map_.point(id)->p_w;
+    match.active = true;
+  }
+  lock.unlock();
+  T_c_w = *T_last;
+  return optimize(frame, matches, T_c_w) >= options_.min_pose_inliers;
+}
+
+int Tracker::optimize(const Frame& frame, std::vector<Match>& matches, SE3& T_c_w) const {
+  std::vector<optim::PoseObservation> observations;
+  std::vector<std::size_t> index;
+  const auto& pyramid = *frame.features->pyramid;
+  for (std::size_t i = 0; i < matches.size(); ++i) {
+    if (!matches[i].active) continue;
+    optim::PoseObservation obs;
+    obs.p_w = matches[i].p_w;
+    obs.measurement = measurement_of(frame.features->points[i], pyramid);
+    observations.push_back(obs);
+    index.push_back(i);
+  }
+  if (observations.size() < 3) return 0;
+  const auto result = optim::optimize_pose(camera_, T_c_w, observations, options_.pose);
+  T_c_w = result.T_c_w;
+  for (std::size_t k = 0; k < index.size(); ++k) matches[index[k]].outlier = !result.inlier[k];
+  return result.num_inliers;
+}
+
+void Tracker::update_local_map(const std::vector<Match>& matches) {
+  // Keyframes that observe the frame's landmarks, weighted by how many they share.
+  std::unordered_map<map::KeyFrameId, int> counts;
+  for (const Match& m : matches) {
+    if (!m.active || m.outlier || m.landmark == map::kNoId) continue;
+    const map::MapPoint* mp = map_.point(m.landmark);
+    if (mp == nullptr) continue;
+    for (const auto& obs : mp->observations) ++counts[obs.first];
+  }
+  std::vector<std::pair<int, map::KeyFrameId>> ranked;
+  for (const auto& [id, n] : counts) ranked.emplace_back(n, id);
+  std::sort(ranked.begin(), ranked.end(), [](const auto& a, const auto& b) {
+    return a.first != b.first ? a.first > b.first : a.second > b.second;
+  });
+  local_keyframes_.clear();
+  std::unordered_set<map::KeyFrameId> chosen;
+  const auto max_kf = static_cast<std::size_t>(options_.max_local_keyframes);
+  for (const auto& [n, id] : ranked) {
+    if (local_keyframes_.size() >= max_kf) break;
+    local_keyframes_.push_back(id);
+    chosen.insert(id);
+  }
+  if (!ranked.empty()) reference_ = ranked.front().second;
+  // Neighbours of the best ones, so that the local map reaches ahead of the camera.
+  const std::size_t first_level = local_keyframes_.size();
+  for (std::size_t k = 0; k < first_level && local_keyframes_.size() < max_kf; ++k)
+    for (map::KeyFrameId n : map_.best_covisible(local_keyframes_[k], 10))
+      if (chosen.insert(n).second) {
+        local_keyframes_.push_back(n);
+        if (local_keyframes_.size() >= max_kf) break;
+      }
+  if (local_keyframes_.empty() && map_.last_keyframe_id() != map::kNoId &&
+      map_.keyframe(map_.last_keyframe_id()) != nullptr) {
+    local_keyframes_.push_back(map_.last_keyframe_id());
+    reference_ = map_.last_keyframe_id();
+  }
+  // Their landmarks, each once.
+  local_points_.clear();
+  std::unordered_set<map::PointId> seen;
+  for (map::KeyFrameId id : local_keyframes_) {
+    const map::KeyFrame* kf = map_.keyframe(id);
+    if (kf == nullptr) continue;
+    for (map::PointId p : kf->landmarks)
+      if (p != map::kNoId && seen.insert(p).second) local_points_.push_back(p);
+  }
+}
+
+int Tracker::search_local_points(const Frame& frame, const SE3& T_c_w, double radius_factor,
+                                 std::vector<Match>& matches) {
+  const auto& points = frame.features->points;
+  const auto& pyramid = *frame.features->pyramid;
+  std::unordered_set<map::PointId> already;
+  for (const Match& m : matches)
+    if (m.active && m.landmark != map::kNoId) already.insert(m.landmark);
+  const Eigen::Vector3d center = T_c_w.inverse().translation();
+  std::vector<int> candidates;
+  int added = 0;
+  for (map::PointId id : local_points_) {
+    if (already.count(id) != 0) continue;
+    const map::MapPoint* mp = map_.point(id);
+    if (mp == nullptr) continue;
+    const Eigen::Vector3d p_c = T_c_w * mp->p_w;
+    if (p_c.z() <= 0.0) continue;
+    const Eigen::Vector2d uv = camera_.project(p_c);
+    if (!camera_.in_image(uv)) continue;
+    const Eigen::Vector3d ray = mp->p_w - center;
+    const double distance = ray.norm();
+    if (distance < 0.8 * mp->min_distance || distance > 1.2 * mp->max_distance) continue;
+    const double view_cos = ray.dot(mp->normal) / distance;
+    if (view_cos < 0.5) continue;
+    auto& stat = statistics_[id];
+    stat.point = id;
+    ++stat.visible;
+    const int level = pyramid.predict_level(distance, mp->max_distance);
+    const double r = (view_cos > 0.998 ? 2.5 : 4.0) * radius_factor *
+                     pyramid.scale[static_cast<std::size_t>(level)];
+    frame.features->grid.query(static_cast<float>(uv.x()), static_cast<float>(uv.y()),
+                               static_cast<float>(r), std::max(0, level - 1), level, candidates);
+    const double ur = camera_.right_u(uv.x(), p_c.z());
+    int best = 256, second = 256, best_level = -1, second_level = -1, best_idx = -1;
+    for (int j : candidates) {
+      const auto& m = matches[static_cast<std::size_t>(j)];
+      if (m.active && m.landmark != map::kNoId) continue;
+      const auto& f = points[static_cast<std::size_t>(j)];
+      if (f.has_depth() && std::abs(ur - f.u_right) > r) continue;
+      const int d = features::hamming_distance(mp->descriptor, f.descriptor);
+      if (d < best) {
+        second = best;
+        second_level = best_level;
+        best = d;
+        best_level = f.keypoint.level;
+        best_idx = j;
+      } else if (d < second) {
+        second = d;
+        second_level = f.keypoint.level;
+      }
+    }
+    if (best_idx < 0 || best > options_.max_descriptor_distance) continue;
+    if (best_level == second_level && best > options_.local_map_ratio * second) continue;
+    Match& m = matches[static_cast<std::size_t>(best_idx)];
+    m.landmark = id;
+    m.p_w = mp->p_w;
+    m.active = true;
+    m.outlier = false;
+    ++added;
+  }
+  return added;
+}
+
+int Tracker::track_local_map(const Frame& frame, std::vector<Match>& matches, SE3& T_c_w,
+                             double radius_factor) {
+  {
+    auto lock = map_.read_lock();
+    // Drop outliers of the frame-to-frame step and landmarks the mapper has culled since.
+    for (Match& m : matches) {
+      if (m.active && m.outlier) m = Match{};
+      if (m.active && m.landmark != map::kNoId) {
+        if (const map::MapPoint* mp = map_.point(m.landmark))
+          m.p_w = mp->p_w;
+        else
+          m.landmark = map::kNoId;
+      }
+    }
+    update_local_map(matches);
+    search_local_points(frame, T_c_w, radius_factor, matches);
+  }
+  const int inliers = optimize(frame, matches, T_c_w);
+  if (std::getenv("MCSLAM_DEBUG")) {
+    int lm = 0, tmp = 0;
+    for (const Match& m : matches)
+      if (m.active && !m.outlier) (m.landmark != map::kNoId ? lm : tmp)++;
+    std::fprintf(stderr, "frame %lu local_kf %zu local_pts %zu inl_landmark %d inl_depth %d\n",
+                 static_cast<unsigned long>(frame.id), local_keyframes_.size(),
+                 local_points_.size(), lm, tmp);
+  }
+  for (const Match& m : matches)
+    if (m.active && !m.outlier && m.landmark != map::kNoId) {
+      auto& stat = statistics_[m.landmark];
+      stat.point = m.landmark;
+      ++stat.found;
+    }
+  return inliers;
+}
+
+bool Tracker::relocalise(const Frame& frame, std::vector<Match>& matches, SE3& T_c_w) {
+  struct Candidate {
+    std::vector<std::pair<int, map::PointId>> correspondences;  // feature, landmark
+    std::vector<Eigen::Vector3d> p_w;
+  };
+  std::vector<Candidate> candidates;
+  {
+    auto lock = map_.read_lock();
+    if (map_.num_keyframes() == 0) return false;
+    // Newest keyframes first, then a spread over the whole map.
+    std::vector<map::KeyFrameId> ids;
+    for (const auto& kv : map_.keyframes()) ids.push_back(kv.first);
+    std::sort(ids.begin(), ids.end(), std::greater<>());
+    const auto n = static_cast<std::size_t>(options_.relocalisation_candidates);
+    std::vector<map::KeyFrameId> chosen(ids.begin(), ids.begin() + std::min(ids.size(), n / 2));
+    if (ids.size() > chosen.size()) {
+      const std::size_t rest = ids.size() - chosen.size();
+      const std::size_t want = std::min(rest, n - chosen.size());
+      for (std::size_t k = 0; k < want; ++k) chosen.push_back(ids[chosen.size() + k * rest / want]);
+    }
+    std::vector<features::OrbDescriptor> query;
+    for (const auto& p : frame.features->points) query.push_back(p.descriptor);
+    for (map::KeyFrameId id : chosen) {
+      const map::KeyFrame* kf = map_.keyframe(id);
+      if (kf == nullptr) continue;
+      std::vector<features::OrbDescriptor> train;
+      std::vector<map::PointId> train_points;
+      for (std::size_t i = 0; i < kf->landmarks.size(); ++i)
+        if (kf->landmarks[i] != map::kNoId && map_.point(kf->landmarks[i]) != nullptr) {
+          train.push_back(kf->features->points[i].descriptor);
+          train_points.push_back(kf->landmarks[i]);
+        }
+      const auto found = features::match_descriptors(query, train, 64, 0.75f, true);
+      if (found.size() < 15) continue;
+      Candidate c;
+      for (const auto& m : found) {
+        const map::PointId pid = train_points[static_cast<std::size_t>(m.train)];
+        c.correspondences.emplace_back(m.query, pid);
+        c.p_w.push_back(map_.point(pid)->p_w);
+      }
+      candidates.push_back(std::move(c));
+    }
+  }
+  std::sort(candidates.begin(), candidates.end(), [](const Candidate& a, const Candidate& b) {
+    return a.correspondences.size() > b.correspondences.size();
+  });
+  const cv::Matx33d K(camera_.fx, 0, camera_.cx, 0, camera_.fy, camera_.cy, 0, 0, 1);
+  for (const Candidate& c : candidates) {
+    std::vector<cv::Point3f> object;
+    std::vector<cv::Point2f> image;
+    for (std::size_t k = 0; k < c.correspondences.size(); ++k) {
+      const auto& kp = frame.features->points[static_cast<std::size_t>(c.correspondences[k].first)];
+      object.emplace_back(static_cast<float>(c.p_w[k].x()), static_cast<float>(c.p_w[k].y()),
+                          static_cast<float>(c.p_w[k].z()));
+      image.emplace_back(kp.keypoint.uv.x(), kp.keypoint.uv.y());
+    }
+    cv::Mat rvec, tvec;
+    std::vector<int> inliers;
+    bool solved = false;
+    try {
+      solved = cv::solvePnPRansac(object, image, K, cv::noArray(), rvec, tvec, false, 200, 4.0f,
+                                  0.99, inliers, cv::SOLVEPNP_EPNP);
+    } catch (const cv::Exception&) {
+      solved = false;  // degenerate configuration: try the next candidate
+    }
+    if (!solved || inliers.size() < 10) continue;
+    cv::Matx33d R;
+    cv::Rodrigues(rvec, R);
+    Eigen::Matrix3d Re;
+    for (int r = 0; r < 3; ++r)
+      for (int col = 0; col < 3; ++col) Re(r, col) = R(r, col);
+    SE3 pose(Re, Eigen::Vector3d(tvec.at<double>(0), tvec.at<double>(1), tvec.at<double>(2)));
+    std::fill(matches.begin(), matches.end(), Match{});
+    for (int k : inliers) {
+      Match& m =
+          matches[static_cast<std::size_t>(c.correspondences[static_cast<std::size_t>(k)].first)];
+      m.landmark = c.correspondences[static_cast<std::size_t>(k)].second;
+      m.p_w = c.p_w[static_cast<std::size_t>(k)];
+      m.active = true;
+    }
+    if (optimize(frame, matches, pose) < options_.min_pose_inliers) continue;
+    T_c_w = pose;
+    return true;
+  }
+  std::fill(matches.begin(), matches.end(), Match{});
+  return false;
+}
+
+bool Tracker::need_keyframe(const Frame& frame, const std::vector<Match>& matches, int inliers,
+                            bool mapper_idle, std::size_t mapper_queue) const {
+  const auto n_keyframes = static_cast<std::uint64_t>(map_.num_keyframes());
+  if (frame.id < last_relocalisation_frame_ +
+                     static_cast<std::uint64_t>(options_.max_frames_between_keyframes) &&
+      last_relocalisation_frame_ > 0 &&
+      n_keyframes > static_cast<std::uint64_t>(options_.max_frames_between_keyframes))
+    return false;
+  // Landmarks of the reference keyframe that are well established.
+  int reference_matches = 0;
+  {
+    auto lock = map_.read_lock();
+    // Observed by at least two keyframes (one while the map is that young).
+    const int min_obs = n_keyframes <= 2 ? 1 : 2;
+    if (const map::KeyFrame* ref = map_.keyframe(reference_)) {
+      for (map::PointId p : ref->landmarks)
+        if (p != map::kNoId)
+          if (const map::MapPoint* mp = map_.point(p))
+            reference_matches += static_cast<int>(mp->observations.size()) >= min_obs ? 1 : 0;
+    }
+  }
+  // Close points tracked / not tracked.
+  int tracked_close = 0, untracked_close = 0;
+  const double close = close_depth();
+  for (std::size_t i = 0; i < matches.size(); ++i) {
+    const auto& f = frame.features->points[i];
+    if (!f.has_depth() || f.depth >= close) continue;
+    const bool tracked =
+        matches[i].active && !matches[i].outlier && matches[i].landmark != map::kNoId;
+    tracked ? ++tracked_close : ++untracked_close;
+  }
+  const bool need_close = tracked_close < options_.close_tracked_threshold &&
+                          untracked_close > options_.close_untracked_threshold;
+  const bool c1a = frame.id >= last_keyframe_frame_ + static_cast<std::uint64_t>(
+                                                          options_.max_frames_between_keyframes);
+  const bool c1b = mapper_idle;
+  const bool c1c = inliers < 0.25 * reference_matches || need_close;
+  const bool c2 =
+      (inliers < options_.keyframe_ref_ratio * reference_matches || need_close) && inliers > 15;
+  if (!((c1a || c1b || c1c) && c2)) return false;
+  return mapper_idle || mapper_queue < 3;
+}
+
+KeyFrameRequest Tracker::make_keyframe(const Frame& frame, const std::vector<Match>& matches,
+                                       const SE3& T_c_w) {
+  KeyFrameRequest request;
+  request.id = next_keyframe_id_++;
+  request.frame = frame;
+  request.T_c_w = T_c_w;
+  request.landmarks.assign(frame.features->points.size(), map::kNoId);
+  for (std::size_t i = 0; i < matches.size(); ++i)
+    if (matches[i].active && !matches[i].outlier) request.landmarks[i] = matches[i].landmark;
+  for (const auto& kv : statistics_) request.statistics.push_back(kv.second);
+  std::sort(request.statistics.begin(), request.statistics.end(),
+            [](const PointStatistics& a, const PointStatistics& b) { return a.point < b.point; });
+  statistics_.clear();
+  pending_keyframes_[request.id] = T_c_w;
+  last_keyframe_ = request.id;
+  last_keyframe_frame_ = frame.id;
+  reference_ = request.id;
+  return request;
+}
+
+void Tracker::remember_last_frame(const Frame& frame, const std::vector<Match>& matches,
+                                  const SE3& T_c_w, map::KeyFrameId reference) {
+  LastFrame last;
+  last.frame = frame;
+  last.T_c_w = T_c_w;
+  last.reference = reference;
+  const auto T_ref_w = keyframe_pose(reference);
+  last.T_c_ref = T_ref_w ? T_c_w * T_ref_w->inverse() : SE3();
+  {
+    // Keyframes the mapper has taken in no longer need their pending pose.
+    auto lock = map_.read_lock();
+    for (auto it = pending_keyframes_.begin(); it != pending_keyframes_.end();)
+      it = map_.keyframe(it->first) != nullptr ? pending_keyframes_.erase(it) : std::next(it);
+  }
+  const std::size_t n = frame.features->points.size();
+  last.landmarks.assign(n, map::kNoId);
+  last.depth_points.assign(n, std::nullopt);
+  // Depth points for the closest features (all close ones, at least 100), as visual odometry
+  // between frames when the map does not yet cover the view.
+  std::vector<std::pair<float, std::size_t>> by_depth;
+  for (std::size_t i = 0; i < n; ++i) {
+    const auto& f = frame.features->points[i];
+    if (matches[i].active && !matches[i].outlier && matches[i].landmark != map::kNoId) {
+      last.landmarks[i] = matches[i].landmark;
+      continue;
+    }
+    if (f.has_depth()) by_depth.emplace_back(f.depth, i);
+  }
+  std::sort(by_depth.begin(), by_depth.end());
+  const double close = close_depth();
+  for (std::size_t k = 0; k < by_depth.size(); ++k) {
+    if (by_depth[k].first > close && k >= 100) break;
+    const auto& f = frame.features->points[by_depth[k].second];
+    last.depth_points[by_depth[k].second] =
+        camera_.unproject(f.keypoint.uv.cast<double>(), f.depth);
+  }
+  last_ = std::move(last);
+}
+
+}  // namespace mcslam::slam

@@ -1,0 +1,222 @@
+#include "mcslam/synth/scene.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <opencv2/core/utility.hpp>
+#include <string>
+
+#include "mcslam/core/error.hpp"
+#include "random.hpp"
+#include "texture.hpp"
+
+namespace mcslam::synth {
+namespace {
+
+constexpr double kPi = 3.141592653589793;
+constexpr double kDeg = kPi / 180.0;
+
+double wave(double amplitude, double period, double phase, double s) {
+  return amplitude * std::sin(2.0 * kPi * s / period + phase);
+}
+
+void require_valid(const SynthOptions& options) {
+  if (auto problem = options.check()) throw InputError("synth options: " + *problem);
+}
+
+/// What to generate for one texture: one layer per {size_u, size_v} face.
+struct TextureJob {
+  std::vector<std::pair<double, double>> faces;
+  detail::SurfaceKind kind;
+  std::uint64_t seed;
+};
+
+/// Generates the textures in parallel (each from its own seed, so the result does not depend on
+/// the number of threads).
+std::vector<std::shared_ptr<const Texture>> make_textures(const std::vector<TextureJob>& jobs,
+                                                          TextureLevel level) {
+  std::vector<std::pair<int, int>> layers;  // (job, face)
+  for (std::size_t j = 0; j < jobs.size(); ++j)
+    for (std::size_t f = 0; f < jobs[j].faces.size(); ++f)
+      layers.emplace_back(static_cast<int>(j), static_cast<int>(f));
+  std::vector<std::vector<cv::Mat>> mips(layers.size());
+  cv::parallel_for_(cv::Range(0, static_cast<int>(layers.size())), [&](const cv::Range& range) {
+    for (int k = range.start; k < range.end; ++k) {
+      const TextureJob& job = jobs[layers[k].first];
+      const auto [su, sv] = job.faces[layers[k].second];
+      const std::uint64_t seed = detail::hash_combine(job.seed, layers[k].second);
+      mips[k] = detail::build_mips(detail::generate_texture_image(su, sv, level, job.kind, seed));
+    }
+  });
+  std::vector<std::shared_ptr<const Texture>> textures;
+  std::size_t k = 0;
+  for (const TextureJob& job : jobs) {
+    auto texture = std::make_shared<Texture>();
+    texture->texel_size = detail::kTexelSize;
+    for (std::size_t f = 0; f < job.faces.size(); ++f) texture->layers.push_back(mips[k++]);
+    textures.push_back(std::move(texture));
+  }
+  return textures;
+}
+
+struct BoxSpec {
+  const char* class_name;
+  Eigen::Vector3d centre;  // of the box; z = half height for a box standing on the floor
+  Eigen::Vector3d half_extents;
+  double yaw_deg;
+};
+
+}  // namespace
+
+std::optional<std::string> SynthOptions::check() const {
+  auto finite = [](double v) { return std::isfinite(v); };
+  if (width <= 0) return "width must be positive (got " + std::to_string(width) + ")";
+  if (height <= 0) return "height must be positive (got " + std::to_string(height) + ")";
+  if (!finite(fx) || fx <= 0.0) return "fx must be positive";
+  if (!finite(fy) || fy <= 0.0) return "fy must be positive";
+  if (!finite(cx)) return "cx must be finite";
+  if (!finite(cy)) return "cy must be finite";
+  if (frames <= 0) return "frames must be positive (got " + std::to_string(frames) + ")";
+  if (!finite(fps) || fps <= 0.0) return "fps must be positive";
+  if (!finite(speed) || speed < 0.0) return "speed must be finite and >= 0";
+  if (!finite(rgb_noise_sigma) || rgb_noise_sigma < 0.0)
+    return "rgb_noise_sigma must be finite and >= 0";
+  return std::nullopt;
+}
+
+PinholeCamera SynthOptions::camera() const {
+  PinholeCamera camera;
+  camera.fx = fx;
+  camera.fy = fy;
+  camera.cx = cx;
+  camera.cy = cy;
+  camera.width = width;
+  camera.height = height;
+  camera.depth_factor = 5000.0;
+  camera.bf = 40.0;
+  return camera;
+}
+
+std::vector<Eigen::Vector3d> SceneObject::corners_at(double t) const {
+  const SE3 T_w_o = pose_at(t);
+  std::vector<Eigen::Vector3d> corners;
+  corners.reserve(8);
+  for (int k = 0; k < 8; ++k) {
+    const Eigen::Vector3d sign((k & 1) ? 1.0 : -1.0, (k & 2) ? 1.0 : -1.0, (k & 4) ? 1.0 : -1.0);
+    corners.push_back(T_w_o * Eigen::Vector3d(sign.cwiseProduct(half_extents)));
+  }
+  return corners;
+}
+
+double Scene::clearance(const Eigen::Vector3d& p_w, double t) const {
+  double d = std::min((p_w - room_min).minCoeff(), (room_max - p_w).minCoeff());
+  for (const SceneObject& object : objects) {
+    const Eigen::Vector3d q = object.pose_at(t).inverse() * p_w;
+    const Eigen::Vector3d e = q.cwiseAbs() - object.half_extents;
+    const double outside = e.cwiseMax(0.0).norm();
+    d = std::min(d, outside > 0.0 ? outside : e.maxCoeff());
+  }
+  return d;
+}
+
+Scene make_room_scene(const SynthOptions& options) {
+  require_valid(options);
+  Scene scene;
+  const Eigen::Vector3d lo = scene.room_min, hi = scene.room_max;
+  const Eigen::Vector3d size = hi - lo;
+  const Eigen::Vector3d ex = Eigen::Vector3d::UnitX(), ey = Eigen::Vector3d::UnitY(),
+                        ez = Eigen::Vector3d::UnitZ();
+  auto surface = [](std::string name, Eigen::Vector3d origin, Eigen::Vector3d u, Eigen::Vector3d v,
+                    double su, double sv) {
+    Surface s;
+    s.name = std::move(name);
+    s.origin = origin;
+    s.u_axis = u;
+    s.v_axis = v;
+    s.size_u = su;
+    s.size_v = sv;
+    return s;
+  };
+  // Normals (u x v) point into the room.
+  scene.surfaces = {
+      surface("floor", lo, ex, ey, size.x(), size.y()),
+      surface("ceiling", Eigen::Vector3d(lo.x(), lo.y(), hi.z()), ey, ex, size.y(), size.x()),
+      surface("wall_x_min", lo, ey, ez, size.y(), size.z()),
+      surface("wall_x_max", Eigen::Vector3d(hi.x(), lo.y(), lo.z()), ez, ey, size.z(), size.y()),
+      surface("wall_y_min", lo, ez, ex, size.z(), size.x()),
+      surface("wall_y_max", Eigen::Vector3d(lo.x(), hi.y(), lo.z()), ex, ez, size.x(), size.z()),
+  };
+  const std::uint64_t seed = detail::hash_combine(options.seed, 0x5CE7E);
+  std::vector<TextureJob> jobs;
+  for (std::size_t i = 0; i < scene.surfaces.size(); ++i) {
+    Surface& s = scene.surfaces[i];
+    s.texture_id = static_cast<int>(jobs.size());
+    const detail::SurfaceKind kind = i == 0   ? detail::SurfaceKind::kFloor
+                                     : i == 1 ? detail::SurfaceKind::kCeiling
+                                              : detail::SurfaceKind::kWall;
+    jobs.push_back({{{s.size_u, s.size_v}}, kind, detail::hash_combine(seed, jobs.size())});
+  }
+
+  // Objects stand on the floor, mostly along the +x wall and the +-y walls (where the camera
+  // looks), all at least ~1 m from the camera path.
+  const BoxSpec specs[] = {
+      {"table", {2.2, 1.0, 0.375}, {0.4, 0.6, 0.375}, 0.0},
+      {"box", {2.2, 1.1, 0.87}, {0.15, 0.2, 0.12}, -15.0},  // on the table
+      {"box", {2.6, -0.3, 0.6}, {0.25, 0.35, 0.6}, 0.0},    // cabinet
+      {"box", {2.2, -1.5, 0.25}, {0.25, 0.25, 0.25}, 25.0},
+      {"box", {0.8, 2.0, 0.35}, {0.35, 0.25, 0.35}, 10.0},
+      {"box", {1.0, -2.0, 0.2}, {0.4, 0.3, 0.2}, -5.0},
+      {"box", {-0.9, 1.95, 0.45}, {0.3, 0.3, 0.45}, 30.0},
+      {"box", {-2.2, -1.0, 0.4}, {0.3, 0.5, 0.4}, 0.0},
+  };
+  for (const BoxSpec& spec : specs) {
+    SceneObject object;
+    object.class_name = spec.class_name;
+    object.half_extents = spec.half_extents;
+    const SE3 T_w_o(Eigen::Quaterniond(Eigen::AngleAxisd(spec.yaw_deg * kDeg, ez)), spec.centre);
+    object.pose_at = [T_w_o](double) { return T_w_o; };
+    object.texture_id = static_cast<int>(jobs.size());
+    TextureJob job{{}, detail::SurfaceKind::kBoxFace, detail::hash_combine(seed, jobs.size())};
+    for (int f = 0; f < 6; ++f) {
+      const int axis = f / 2;
+      job.faces.emplace_back(2.0 * spec.half_extents[(axis + 1) % 3],
+                             2.0 * spec.half_extents[(axis + 2) % 3]);
+    }
+    jobs.push_back(std::move(job));
+    scene.objects.push_back(std::move(object));
+  }
+  scene.textures = make_textures(jobs, options.texture);
+  return scene;
+}
+
+SE3 camera_pose_at(double t, double speed) {
+  const double s = speed * t;
+  const Eigen::Vector3d position(0.1 + wave(0.50, 9.0, 0.0, s) + wave(0.12, 3.7, 1.0, s),
+                                 wave(0.60, 11.0, 0.5, s) + wave(0.12, 4.3, 2.0, s),
+                                 1.4 + wave(0.12, 7.0, 0.3, s) + wave(0.04, 2.9, 1.1, s));
+  const double yaw = (wave(36.0, 10.0, 0.0, s) + wave(5.0, 3.3, 0.4, s)) * kDeg;
+  const double pitch = (12.0 + wave(6.0, 6.3, 0.7, s) + wave(2.0, 2.3, 1.9, s)) * kDeg;  // down
+  const double roll = (wave(4.0, 5.1, 1.3, s) + wave(1.5, 1.9, 0.2, s)) * kDeg;
+  // Camera looking along world +x, upright: x_c = -y_w, y_c = -z_w, z_c = +x_w.
+  Eigen::Matrix3d R_w_c0;
+  R_w_c0 << 0.0, 0.0, 1.0, -1.0, 0.0, 0.0, 0.0, -1.0, 0.0;
+  const Eigen::Matrix3d R_w_c =
+      (Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()) *
+       Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitY()))
+          .toRotationMatrix() *
+      R_w_c0 * Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  return SE3(R_w_c, position);
+}
+
+Trajectory camera_path(const SynthOptions& options) {
+  require_valid(options);
+  Trajectory path;
+  path.reserve(options.frames);
+  for (int i = 0; i < options.frames; ++i) {
+    const double t = i / options.fps;
+    path.push_back({1.0 + t, camera_pose_at(t, options.speed)});
+  }
+  return path;
+}
+
+}  // namespace mcslam::synth
