@@ -113,7 +113,8 @@ nlohmann::json run_sequence(const RunRequest& request) {
                                                       std::to_string(config.camera.width) + "x" +
                                                       std::to_string(config.camera.height)));
     load_ms.push_back(load_watch.elapsed_ms());
-    const slam::FrameResult r = system.process(images.rgb, images.depth, entry.rgb_timestamp);
+    const slam::FrameResult r =
+        system.process(images.rgb, images.depth, entry.rgb_timestamp, entry.depth_timestamp);
     tracked += r.state == slam::TrackingState::kOk ? 1 : 0;
     lost += r.state == slam::TrackingState::kLost ? 1 : 0;
     relocalised += r.relocalised ? 1 : 0;
@@ -137,6 +138,7 @@ nlohmann::json run_sequence(const RunRequest& request) {
   // Outputs.
   const Trajectory trajectory = system.trajectory();
   io::write_tum_trajectory((out / "trajectory.txt").string(), trajectory);
+  io::write_tum_trajectory((out / "trajectory_online.txt").string(), system.online_trajectory());
   io::write_file_atomic((out / "keyframes.txt").string(),
                         format_tum_keyframes(system.keyframe_trajectory()));
   std::ostringstream csv;

@@ -37,7 +37,8 @@ ReprojectionError<kDim>::ReprojectionError(const PinholeCamera& camera, const Po
       cx_(camera.cx),
       cy_(camera.cy),
       bf_(camera.bf),
-      sqrt_information_(std::sqrt(m.information)) {
+      sqrt_information_(std::sqrt(m.information)),
+      sqrt_right_information_(std::sqrt(m.right_information)) {
   observed_[0] = m.uv.x();
   observed_[1] = m.uv.y();
   if constexpr (kDim == 3) observed_[2] = m.u_right;
@@ -55,10 +56,9 @@ bool ReprojectionError<kDim>::Evaluate(double const* const* parameters, double* 
   const double u = fx_ * p_c.x() * inv_z + cx_;
   const double v = fy_ * p_c.y() * inv_z + cy_;
   Eigen::Map<Eigen::Matrix<double, kDim, 1>> r(residuals);
-  r[0] = u - observed_[0];
-  r[1] = v - observed_[1];
-  if constexpr (kDim == 3) r[2] = (u - bf_ * inv_z) - observed_[2];
-  r *= sqrt_information_;
+  r[0] = sqrt_information_ * (u - observed_[0]);
+  r[1] = sqrt_information_ * (v - observed_[1]);
+  if constexpr (kDim == 3) r[2] = sqrt_right_information_ * ((u - bf_ * inv_z) - observed_[2]);
   if (jacobians == nullptr || (jacobians[0] == nullptr && jacobians[1] == nullptr)) return true;
 
   Eigen::Matrix<double, kDim, 3> d_pc;
@@ -67,8 +67,9 @@ bool ReprojectionError<kDim>::Evaluate(double const* const* parameters, double* 
   if constexpr (kDim == 3) {
     d_pc.row(2) = d_pc.row(0);
     d_pc(2, 2) += bf_ * inv_z * inv_z;
+    d_pc.row(2) *= sqrt_right_information_;
   }
-  d_pc *= sqrt_information_;
+  d_pc.template topRows<2>() *= sqrt_information_;
   Eigen::Matrix<double, 3, 7> d_pose;
   Eigen::Matrix3d d_point;
   transform_point_jacobians(pose, p_w, jacobians[0] ? &d_pose : nullptr,
@@ -102,12 +103,12 @@ double reprojection_chi2(const PinholeCamera& camera, const PointMeasurement& m,
                          const Eigen::Vector3d& p_c) {
   if (p_c.z() <= 1e-6) return std::numeric_limits<double>::infinity();
   const Eigen::Vector2d uv = camera.project(p_c);
-  double e2 = (uv - m.uv).squaredNorm();
+  double chi2 = (uv - m.uv).squaredNorm() * m.information;
   if (m.has_depth()) {
     const double ur = uv.x() - camera.bf / p_c.z();
-    e2 += (ur - m.u_right) * (ur - m.u_right);
+    chi2 += (ur - m.u_right) * (ur - m.u_right) * m.right_information;
   }
-  return e2 * m.information;
+  return chi2;
 }
 
 template class ReprojectionError<2>;

@@ -61,11 +61,17 @@ void read_options(io::ConfigFile& f, SystemOptions& o, const PinholeCamera& came
   f.read("tracker.max_descriptor_distance", t.max_descriptor_distance);
   f.read("tracker.strict_descriptor_distance", t.strict_descriptor_distance);
   f.read("tracker.local_map_ratio", t.local_map_ratio);
+  f.read("tracker.local_map_search_radius", t.local_map_search_radius);
+  f.read("tracker.depth_weight", t.depth_weight);
+  f.read("tracker.compensate_depth_time", t.compensate_depth_time);
   f.read("tracker.min_motion_matches", t.min_motion_matches);
   f.read("tracker.min_pose_inliers", t.min_pose_inliers);
   f.read("tracker.min_local_map_inliers", t.min_local_map_inliers);
   f.read("tracker.min_relocalisation_inliers", t.min_relocalisation_inliers);
   f.read("tracker.max_local_keyframes", t.max_local_keyframes);
+  f.read("tracker.spatial_keyframes", t.spatial_keyframes);
+  f.read("tracker.spatial_radius", t.spatial_radius);
+  f.read("tracker.spatial_max_angle_deg", t.spatial_max_angle_deg);
   f.read("tracker.max_frames_between_keyframes", t.max_frames_between_keyframes);
   double fps = 0.0;
   if (f.read("Camera.fps", fps) && fps >= 1.0)
@@ -83,10 +89,12 @@ void read_options(io::ConfigFile& f, SystemOptions& o, const PinholeCamera& came
   f.read("mapper.min_new_points", m.min_new_points);
   f.read("mapper.fuse_neighbours", m.fuse_neighbours);
   f.read("mapper.fuse_radius", m.fuse_radius);
+  f.read("mapper.depth_weight", m.depth_weight);
   f.read("mapper.ba_keyframes", m.ba_keyframes);
   f.read("mapper.min_covisibility_weight", m.min_covisibility_weight);
   f.read("mapper.redundant_ratio", m.redundant_ratio);
   f.read("mapper.cull_keyframes", m.cull_keyframes);
+  f.read("mapper.global_ba_iterations", m.global_ba_iterations);
   f.read("mapper.ba.robust_iterations", m.ba.robust_iterations);
   f.read("mapper.ba.refine_iterations", m.ba.refine_iterations);
   f.read("mapper.ba.num_threads", m.ba.num_threads);
@@ -177,11 +185,17 @@ std::string to_yaml(const RunConfig& c) {
     << "\n  max_descriptor_distance: " << t.max_descriptor_distance
     << "\n  strict_descriptor_distance: " << t.strict_descriptor_distance
     << "\n  local_map_ratio: " << t.local_map_ratio
+    << "\n  local_map_search_radius: " << t.local_map_search_radius
+    << "\n  depth_weight: " << t.depth_weight
+    << "\n  compensate_depth_time: " << (t.compensate_depth_time ? "true" : "false")
     << "\n  min_motion_matches: " << t.min_motion_matches
     << "\n  min_pose_inliers: " << t.min_pose_inliers
     << "\n  min_local_map_inliers: " << t.min_local_map_inliers
     << "\n  min_relocalisation_inliers: " << t.min_relocalisation_inliers
     << "\n  max_local_keyframes: " << t.max_local_keyframes
+    << "\n  spatial_keyframes: " << t.spatial_keyframes
+    << "\n  spatial_radius: " << t.spatial_radius
+    << "\n  spatial_max_angle_deg: " << t.spatial_max_angle_deg
     << "\n  max_frames_between_keyframes: " << t.max_frames_between_keyframes
     << "\n  keyframe_ref_ratio: " << t.keyframe_ref_ratio
     << "\n  close_tracked_threshold: " << t.close_tracked_threshold
@@ -198,6 +212,7 @@ std::string to_yaml(const RunConfig& c) {
     << "\n  min_covisibility_weight: " << m.min_covisibility_weight
     << "\n  redundant_ratio: " << m.redundant_ratio
     << "\n  cull_keyframes: " << (m.cull_keyframes ? "true" : "false")
+    << "\n  global_ba_iterations: " << m.global_ba_iterations
     << "\n  ba:\n    robust_iterations: " << m.ba.robust_iterations
     << "\n    refine_iterations: " << m.ba.refine_iterations
     << "\n    num_threads: " << m.ba.num_threads << "\n";

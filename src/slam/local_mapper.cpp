@@ -9,13 +9,14 @@
 namespace mcslam::slam {
 namespace {
 
-optim::PointMeasurement measurement_of(const map::KeyFrame& kf, int index) {
+optim::PointMeasurement measurement_of(const map::KeyFrame& kf, int index, double depth_weight) {
   const auto& f = kf.features->points[static_cast<std::size_t>(index)];
   optim::PointMeasurement m;
   m.uv = f.keypoint.uv.cast<double>();
-  m.with_depth = f.has_depth();
+  m.with_depth = f.has_depth() && depth_weight > 0.0;
   m.u_right = f.u_right;
   m.information = kf.features->pyramid->inv_sigma2[static_cast<std::size_t>(f.keypoint.level)];
+  m.right_information = m.information * depth_weight;
   return m;
 }
 
@@ -270,6 +271,24 @@ void LocalMapper::local_bundle_adjustment(map::KeyFrameId id) {
                                         options_.min_covisibility_weight);
   if (neighbours.empty()) neighbours = map_.best_covisible(id, 1);
   local.insert(local.end(), neighbours.begin(), neighbours.end());
+  bundle_adjust_keyframes(local, options_.ba, &abort_ba_);
+}
+
+void LocalMapper::global_bundle_adjustment() {
+  finish();
+  std::vector<map::KeyFrameId> all;
+  for (const auto& kv : map_.keyframes()) all.push_back(kv.first);
+  std::sort(all.begin(), all.end());
+  if (all.size() < 2) return;
+  optim::BundleAdjustmentOptions options = options_.ba;
+  options.robust_iterations = options_.global_ba_iterations;
+  options.refine_iterations = options_.global_ba_iterations;
+  bundle_adjust_keyframes(all, options, nullptr);
+}
+
+void LocalMapper::bundle_adjust_keyframes(const std::vector<map::KeyFrameId>& local,
+                                          const optim::BundleAdjustmentOptions& ba_options,
+                                          const std::atomic<bool>* abort) {
   std::unordered_set<map::KeyFrameId> local_set(local.begin(), local.end());
 
   optim::BundleAdjustmentProblem problem;
@@ -309,13 +328,13 @@ void LocalMapper::local_bundle_adjustment(map::KeyFrameId id) {
       optim::BundleAdjustmentProblem::Observation obs;
       obs.pose = add_pose(kf_id, local_set.count(kf_id) == 0);
       obs.point = static_cast<int>(k);
-      obs.measurement = measurement_of(*kf, index);
+      obs.measurement = measurement_of(*kf, index, options_.depth_weight);
       problem.observations.push_back(obs);
       observation_ids.emplace_back(kf_id, point_ids[k]);
     }
   }
   if (problem.observations.empty()) return;
-  const auto result = optim::bundle_adjust(camera_, problem, options_.ba, &abort_ba_);
+  const auto result = optim::bundle_adjust(camera_, problem, ba_options, abort);
 
   auto lock = map_.write_lock();
   for (std::size_t k = 0; k < observation_ids.size(); ++k)

@@ -10,12 +10,18 @@ std::optional<std::string> TrackerOptions::check() const {
   if (max_descriptor_distance < 1 || max_descriptor_distance > 256 ||
       strict_descriptor_distance < 1 || strict_descriptor_distance > max_descriptor_distance)
     return "tracker descriptor distances must satisfy 1 <= strict <= max <= 256";
+  if (!(depth_weight >= 0.0)) return "tracker.depth_weight must not be negative";
+  if (!(local_map_search_radius > 0.0)) return "tracker.local_map_search_radius must be positive";
   if (!(local_map_ratio > 0.0 && local_map_ratio <= 1.0))
     return "tracker.local_map_ratio must be in (0, 1]";
   if (min_motion_matches < 3 || min_pose_inliers < 3 || min_local_map_inliers < 3 ||
       min_relocalisation_inliers < 3)
     return "tracker minimum match and inlier counts must be at least 3";
   if (max_local_keyframes < 1) return "tracker.max_local_keyframes must be at least 1";
+  if (spatial_keyframes < 0) return "tracker.spatial_keyframes must not be negative";
+  if (!(spatial_radius > 0.0)) return "tracker.spatial_radius must be positive";
+  if (!(spatial_max_angle_deg > 0.0 && spatial_max_angle_deg <= 180.0))
+    return "tracker.spatial_max_angle_deg must be in (0, 180]";
   if (max_frames_between_keyframes < 1)
     return "tracker.max_frames_between_keyframes must be at least 1";
   if (!(keyframe_ref_ratio > 0.0 && keyframe_ref_ratio <= 1.0))
@@ -26,9 +32,11 @@ std::optional<std::string> TrackerOptions::check() const {
 }
 
 std::optional<std::string> MapperOptions::check() const {
+  if (global_ba_iterations < 0) return "mapper.global_ba_iterations must not be negative";
   if (min_new_points < 0) return "mapper.min_new_points must not be negative";
   if (fuse_neighbours < 0) return "mapper.fuse_neighbours must not be negative";
   if (!(fuse_radius > 0.0)) return "mapper.fuse_radius must be positive";
+  if (!(depth_weight >= 0.0)) return "mapper.depth_weight must not be negative";
   if (ba_keyframes < 1) return "mapper.ba_keyframes must be at least 1";
   if (min_covisibility_weight < 1) return "mapper.min_covisibility_weight must be at least 1";
   if (!(redundant_ratio > 0.0 && redundant_ratio <= 1.0))

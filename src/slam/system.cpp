@@ -25,7 +25,8 @@ System::System(const PinholeCamera& camera, const SystemOptions& options)
 
 System::~System() { finish(); }
 
-FrameResult System::process(const cv::Mat& rgb, const cv::Mat& depth, double timestamp) {
+FrameResult System::process(const cv::Mat& rgb, const cv::Mat& depth, double timestamp,
+                            std::optional<double> depth_timestamp) {
   FrameResult result;
   result.frame_id = next_frame_id_++;
   result.timestamp = timestamp;
@@ -53,7 +54,12 @@ FrameResult System::process(const cv::Mat& rgb, const cv::Mat& depth, double tim
   result.times.add("undistort", watch.elapsed_ms());
 
   watch.restart();
-  const Frame frame = builder_->build(result.frame_id, timestamp, gray, undistorted_depth);
+  std::optional<SE3> T_rgb_depth;
+  if (options_.tracker.compensate_depth_time && depth_timestamp &&
+      std::abs(*depth_timestamp - timestamp) > 1e-4)
+    T_rgb_depth = tracker_->predicted_motion(timestamp - *depth_timestamp);
+  const Frame frame =
+      builder_->build(result.frame_id, timestamp, gray, undistorted_depth, T_rgb_depth);
   result.features = static_cast<int>(frame.features->points.size());
   result.times.add("orb_extract", watch.elapsed_ms());
 
@@ -89,6 +95,7 @@ void System::finish() {
   if (finished_) return;
   finished_ = true;
   mapper_->finish();
+  if (options_.mapper.global_ba_iterations > 0) mapper_->global_bundle_adjustment();
 }
 
 Trajectory System::trajectory() const {
@@ -100,6 +107,13 @@ Trajectory System::trajectory() const {
     const SE3 T_c_w = T_ref_w ? r.T_c_ref * (*T_ref_w) : r.T_c_w;
     out.push_back({r.timestamp, T_c_w.inverse()});
   }
+  return out;
+}
+
+Trajectory System::online_trajectory() const {
+  Trajectory out;
+  for (const FrameRecord& r : records_)
+    if (r.tracked) out.push_back({r.timestamp, r.T_c_w.inverse()});
   return out;
 }
 

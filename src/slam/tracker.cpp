@@ -61,12 +61,13 @@ class RotationHistogram {
 };
 
 optim::PointMeasurement measurement_of(const features::PointFeature& f,
-                                       const features::ScalePyramid& pyramid) {
+                                       const features::ScalePyramid& pyramid, double depth_weight) {
   optim::PointMeasurement m;
   m.uv = f.keypoint.uv.cast<double>();
-  m.with_depth = f.has_depth();
+  m.with_depth = f.has_depth() && depth_weight > 0.0;
   m.u_right = f.u_right;
   m.information = pyramid.inv_sigma2[static_cast<std::size_t>(f.keypoint.level)];
+  m.right_information = m.information * depth_weight;
   return m;
 }
 
@@ -126,7 +127,8 @@ TrackingOutcome Tracker::track(const Frame& frame, bool mapper_idle, std::size_t
   int inliers = 0;
   if (ok) {
     const bool recent_reloc = frame.id < last_relocalisation_frame_ + 2;
-    inliers = track_local_map(frame, matches, T_c_w, recent_reloc ? 3.0 : 1.0);
+    inliers = track_local_map(frame, matches, T_c_w,
+                              recent_reloc ? 5.0 : options_.local_map_search_radius);
     const int needed = frame.id < last_relocalisation_frame_ + options_.max_frames_between_keyframes
                            ? options_.min_relocalisation_inliers
                            : options_.min_local_map_inliers;
@@ -147,10 +149,12 @@ TrackingOutcome Tracker::track(const Frame& frame, bool mapper_idle, std::size_t
   }
 
   watch.restart();
-  if (const auto T_last = last_frame_pose(); T_last && state_ == TrackingState::kOk)
+  if (const auto T_last = last_frame_pose(); T_last && state_ == TrackingState::kOk) {
     velocity_ = T_c_w * T_last->inverse();
-  else
+    velocity_dt_ = frame.timestamp - last_->frame.timestamp;
+  } else {
     velocity_.reset();
+  }
   state_ = TrackingState::kOk;
   out.state = state_;
   out.T_c_w = T_c_w;
@@ -189,6 +193,11 @@ TrackingOutcome Tracker::initialize(const Frame& frame) {
   remember_last_frame(frame, none, SE3(), out.reference);
   out.T_c_ref = SE3();
   return out;
+}
+
+std::optional<SE3> Tracker::predicted_motion(double dt) const {
+  if (!velocity_ || !(velocity_dt_ > 1e-4) || state_ != TrackingState::kOk) return std::nullopt;
+  return SE3::exp(velocity_->log() * (dt / velocity_dt_));
 }
 
 std::optional<SE3> Tracker::keyframe_pose(map::KeyFrameId id) const {
@@ -336,7 +345,7 @@ int Tracker::optimize(const Frame& frame, std::vector<Match>& matches, SE3& T_c_
     if (!matches[i].active) continue;
     optim::PoseObservation obs;
     obs.p_w = matches[i].p_w;
-    obs.measurement = measurement_of(frame.features->points[i], pyramid);
+    obs.measurement = measurement_of(frame.features->points[i], pyramid, options_.depth_weight);
     observations.push_back(obs);
     index.push_back(i);
   }
@@ -347,7 +356,7 @@ int Tracker::optimize(const Frame& frame, std::vector<Match>& matches, SE3& T_c_
   return result.num_inliers;
 }
 
-void Tracker::update_local_map(const std::vector<Match>& matches) {
+void Tracker::update_local_map(const std::vector<Match>& matches, const SE3& T_c_w) {
   // Keyframes that observe the frame's landmarks, weighted by how many they share.
   std::unordered_map<map::KeyFrameId, int> counts;
   for (const Match& m : matches) {
@@ -378,6 +387,30 @@ void Tracker::update_local_map(const std::vector<Match>& matches) {
         local_keyframes_.push_back(n);
         if (local_keyframes_.size() >= max_kf) break;
       }
+  // Keyframes near the camera that look the same way, linked by covisibility or not: when the
+  // camera comes back to a place, the old landmarks are matched again instead of being mapped a
+  // second time, which closes small loops without a separate loop detector.
+  if (options_.spatial_keyframes > 0) {
+    const SE3 T_w_c = T_c_w.inverse();
+    const Eigen::Vector3d center = T_w_c.translation();
+    const Eigen::Vector3d axis = T_w_c.rotation().col(2);
+    const double min_cos = std::cos(options_.spatial_max_angle_deg * M_PI / 180.0);
+    std::vector<std::pair<double, map::KeyFrameId>> nearby;
+    for (const auto& [id, kf] : map_.keyframes()) {
+      if (chosen.count(id) != 0) continue;
+      const SE3 kf_T_w_c = kf.T_w_c();
+      const double distance = (kf_T_w_c.translation() - center).norm();
+      if (distance > options_.spatial_radius) continue;
+      if (kf_T_w_c.rotation().col(2).dot(axis) < min_cos) continue;
+      nearby.emplace_back(distance, id);
+    }
+    std::sort(nearby.begin(), nearby.end());
+    const auto n = std::min(nearby.size(), static_cast<std::size_t>(options_.spatial_keyframes));
+    for (std::size_t k = 0; k < n; ++k) {
+      local_keyframes_.push_back(nearby[k].second);
+      chosen.insert(nearby[k].second);
+    }
+  }
   if (local_keyframes_.empty() && map_.last_keyframe_id() != map::kNoId &&
       map_.keyframe(map_.last_keyframe_id()) != nullptr) {
     local_keyframes_.push_back(map_.last_keyframe_id());
@@ -470,18 +503,10 @@ int Tracker::track_local_map(const Frame& frame, std::vector<Match>& matches, SE
           m.landmark = map::kNoId;
       }
     }
-    update_local_map(matches);
+    update_local_map(matches, T_c_w);
     search_local_points(frame, T_c_w, radius_factor, matches);
   }
   const int inliers = optimize(frame, matches, T_c_w);
-  if (std::getenv("MCSLAM_DEBUG")) {
-    int lm = 0, tmp = 0;
-    for (const Match& m : matches)
-      if (m.active && !m.outlier) (m.landmark != map::kNoId ? lm : tmp)++;
-    std::fprintf(stderr, "frame %lu local_kf %zu local_pts %zu inl_landmark %d inl_depth %d\n",
-                 static_cast<unsigned long>(frame.id), local_keyframes_.size(),
-                 local_points_.size(), lm, tmp);
-  }
   for (const Match& m : matches)
     if (m.active && !m.outlier && m.landmark != map::kNoId) {
       auto& stat = statistics_[m.landmark];

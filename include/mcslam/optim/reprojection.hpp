@@ -15,7 +15,10 @@ struct PointMeasurement {
   Eigen::Vector2d uv = Eigen::Vector2d::Zero();
   double u_right = 0.0;      // virtual right-camera u; used only when with_depth
   bool with_depth = false;   // false: a 2D (u, v) residual
-  double information = 1.0;  // 1 / sigma^2 of the keypoint's level
+  double information = 1.0;  // 1 / sigma^2 of the keypoint's level, for u and v
+  /// 1 / sigma^2 of u_right. Depth noise and the time offset between the colour and depth
+  /// images make it less reliable than u and v; callers scale it by a depth weight.
+  double right_information = 1.0;
   bool has_depth() const { return with_depth; }
 };
 
@@ -37,6 +40,7 @@ class ReprojectionError final : public ceres::SizedCostFunction<kDim, 7, 3> {
   double fx_, fy_, cx_, cy_, bf_;
   Eigen::Matrix<double, kDim, 1> observed_;
   double sqrt_information_;
+  double sqrt_right_information_;
 };
 
 /// The same residual with the point held fixed (pose-only optimisation).

@@ -4,8 +4,10 @@
 #include <cstdint>
 #include <memory>
 #include <opencv2/core.hpp>
+#include <optional>
 
 #include "mcslam/core/camera.hpp"
+#include "mcslam/core/se3.hpp"
 #include "mcslam/features/frame_features.hpp"
 #include "mcslam/features/orb.hpp"
 
@@ -23,13 +25,19 @@ class FrameBuilder {
  public:
   FrameBuilder(const PinholeCamera& camera, const features::OrbOptions& orb, double min_depth,
                double max_depth);
-  Frame build(std::uint64_t id, double timestamp, const cv::Mat& gray, const cv::Mat& depth) const;
+  /// `T_rgb_depth`, when given, is the camera motion from the depth image's capture time to the
+  /// colour image's: each keypoint's depth is then read where the depth camera saw that point
+  /// and moved to the colour capture time, and depths that disagree along the way (depth
+  /// discontinuities) are dropped.
+  Frame build(std::uint64_t id, double timestamp, const cv::Mat& gray, const cv::Mat& depth,
+              const std::optional<SE3>& T_rgb_depth = std::nullopt) const;
   const std::shared_ptr<const features::ScalePyramid>& pyramid() const { return pyramid_; }
 
  private:
   PinholeCamera camera_;
   features::OrbExtractor extractor_;
   std::shared_ptr<const features::ScalePyramid> pyramid_;
+  std::optional<float> depth_at(const cv::Mat& depth, double u, double v) const;
   double min_depth_;
   double max_depth_;
 };

@@ -14,6 +14,7 @@
 #include "mcslam/core/camera.hpp"
 #include "mcslam/core/timing.hpp"
 #include "mcslam/map/map.hpp"
+#include "mcslam/optim/bundle_adjustment.hpp"
 #include "mcslam/slam/options.hpp"
 #include "mcslam/slam/tracker.hpp"
 
@@ -38,6 +39,10 @@ class LocalMapper {
   bool idle() const;
   std::size_t queue_size() const;
 
+  /// Bundle adjustment of the whole map (all keyframes and points, the first keyframe fixed).
+  /// Stops the mapping thread first.
+  void global_bundle_adjustment();
+
   /// Stage times of every processed keyframe (copy; safe from any thread).
   std::vector<StageTimes> keyframe_times() const;
 
@@ -49,6 +54,9 @@ class LocalMapper {
   void fuse_neighbours(map::KeyFrameId id);
   int fuse_into(map::KeyFrameId target, const std::vector<map::PointId>& points);
   void local_bundle_adjustment(map::KeyFrameId id);
+  void bundle_adjust_keyframes(const std::vector<map::KeyFrameId>& keyframes,
+                               const optim::BundleAdjustmentOptions& options,
+                               const std::atomic<bool>* abort);
   void cull_keyframes(map::KeyFrameId id);
 
   PinholeCamera camera_;

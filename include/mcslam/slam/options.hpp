@@ -22,12 +22,25 @@ struct TrackerOptions {
   int max_descriptor_distance = 100;
   int strict_descriptor_distance = 50;
   double local_map_ratio = 0.8;
+  /// Local-map search window factor (times 2.5-4 px, times the level's scale). RGB-D: 3.
+  double local_map_search_radius = 3.0;
+  /// Weight of the depth (virtual right coordinate) residual relative to u, v in pose
+  /// optimisation; 0 uses u, v only.
+  double depth_weight = 1.0;
+  /// Move each keypoint's depth from the depth image's capture time to the colour image's with
+  /// the tracked velocity (Kinect v1 streams are ~15 ms apart: ~1 degree at 60 deg/s).
+  bool compensate_depth_time = true;
   int min_motion_matches = 20;
   int min_pose_inliers = 10;
   int min_local_map_inliers = 30;
   int min_relocalisation_inliers = 50;
   /// Local map: keyframes sharing points with the frame, plus neighbours, at most this many.
   int max_local_keyframes = 60;
+  /// Also in the local map: up to this many keyframes within spatial_radius metres of the
+  /// camera whose optical axes differ by less than spatial_max_angle_deg (0 disables).
+  int spatial_keyframes = 20;
+  double spatial_radius = 0.5;
+  double spatial_max_angle_deg = 40.0;
   /// Keyframe decision (ORB-SLAM2's rules for RGB-D).
   int max_frames_between_keyframes = 30;
   double keyframe_ref_ratio = 0.75;
@@ -48,12 +61,17 @@ struct MapperOptions {
   /// Keyframes whose neighbours' points are fused into a new keyframe.
   int fuse_neighbours = 10;
   double fuse_radius = 3.0;
+  /// Weight of the depth residual in local bundle adjustment (see TrackerOptions).
+  double depth_weight = 1.0;
   /// Local BA: covisible keyframes optimised together with the new one.
   int ba_keyframes = 20;
   int min_covisibility_weight = 15;
   /// A keyframe is redundant when this fraction of its close points is seen by >= 3 others.
   double redundant_ratio = 0.9;
   bool cull_keyframes = true;
+  /// When the run ends: bundle adjustment of the whole map before the final trajectory is
+  /// written (the online trajectory is unaffected). 0 iterations disables it.
+  int global_ba_iterations = 15;
   optim::BundleAdjustmentOptions ba;
 
   std::optional<std::string> check() const;

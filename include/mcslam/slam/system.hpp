@@ -51,7 +51,10 @@ class System {
   /// One frame: `rgb` is CV_8UC3 (BGR) or CV_8UC1, `depth` CV_32FC1 in metres (0 = missing),
   /// both raw (undistorted here when the camera has distortion) and of the camera's size.
   /// Never throws for image content; a frame of the wrong size or type is reported as lost.
-  FrameResult process(const cv::Mat& rgb, const cv::Mat& depth, double timestamp);
+  /// `depth_timestamp` is when the depth image was taken (default: with the colour image); the
+  /// difference is compensated with the tracked motion when compensate_depth_time is on.
+  FrameResult process(const cv::Mat& rgb, const cv::Mat& depth, double timestamp,
+                      std::optional<double> depth_timestamp = std::nullopt);
 
   /// Lets the mapper finish its queue. Call before reading the final trajectory.
   void finish();
@@ -59,6 +62,8 @@ class System {
   /// Tracked frames, each placed relative to its reference keyframe's final (refined) pose.
   Trajectory trajectory() const;
   Trajectory keyframe_trajectory() const;
+  /// Tracked frames at the poses tracking gave them at the time (what a robot saw online).
+  Trajectory online_trajectory() const;
   /// The map (read it under map().read_lock() while the system runs threaded).
   const map::Map& map() const { return *map_; }
   /// Stage times of each processed keyframe in the mapper.

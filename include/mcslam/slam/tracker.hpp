@@ -54,6 +54,9 @@ class Tracker {
                         StageTimes* times = nullptr);
 
   TrackingState state() const { return state_; }
+  /// The camera's motion over `dt` seconds at the current velocity estimate, as the transform
+  /// from the camera at time t to the camera at t + dt; nullopt without an estimate.
+  std::optional<SE3> predicted_motion(double dt) const;
 
  private:
   struct Match {
@@ -86,7 +89,7 @@ class Tracker {
   int search_local_points(const Frame& frame, const SE3& T_c_w, double radius_factor,
                           std::vector<Match>& matches);
   int optimize(const Frame& frame, std::vector<Match>& matches, SE3& T_c_w) const;
-  void update_local_map(const std::vector<Match>& matches);
+  void update_local_map(const std::vector<Match>& matches, const SE3& T_c_w);
   bool need_keyframe(const Frame& frame, const std::vector<Match>& matches, int inliers,
                      bool mapper_idle, std::size_t mapper_queue) const;
   KeyFrameRequest make_keyframe(const Frame& frame, const std::vector<Match>& matches,
@@ -105,6 +108,7 @@ class Tracker {
   TrackingState state_ = TrackingState::kNotInitialized;
   std::optional<LastFrame> last_;
   std::optional<SE3> velocity_;  // T_cur_last of the last tracked step
+  double velocity_dt_ = 0.0;     // its duration in seconds
   map::KeyFrameId next_keyframe_id_ = 0;
   map::KeyFrameId last_keyframe_ = map::kNoId;
   std::uint64_t last_keyframe_frame_ = 0;

@@ -1,0 +1,145 @@
+#include "mcslam/slam/config.hpp"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "mcslam/core/error.hpp"
+
+namespace mcslam::slam {
+namespace {
+
+namespace fs = std::filesystem;
+
+class TempDir {
+ public:
+  TempDir()
+      : path_(fs::temp_directory_path() / ("mcslam_config_test_" + std::to_string(::getpid()))) {
+    fs::create_directories(path_);
+  }
+  ~TempDir() { fs::remove_all(path_); }
+  fs::path write(const std::string& name, const std::string& text) const {
+    std::ofstream(path_ / name) << text;
+    return path_ / name;
+  }
+  const fs::path& path() const { return path_; }
+
+ private:
+  fs::path path_;
+};
+
+std::string message_of(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(Config, ReadsOrbSlam2SettingsFile) {
+  const std::string text =
+      "%YAML:1.0\n"
+      "Camera.fx: 535.4\nCamera.fy: 539.2\nCamera.cx: 320.1\nCamera.cy: 247.6\n"
+      "Camera.k1: 0.0\nCamera.k2: 0.0\nCamera.p1: 0.0\nCamera.p2: 0.0\n"
+      "Camera.width: 640\nCamera.height: 480\nCamera.fps: 30.0\nCamera.bf: 40.0\nCamera.RGB: 1\n"
+      "ThDepth: 40.0\nDepthMapFactor: 5000.0\n"
+      "ORBextractor.nFeatures: 1200\nORBextractor.scaleFactor: 1.2\nORBextractor.nLevels: 8\n"
+      "ORBextractor.iniThFAST: 20\nORBextractor.minThFAST: 7\n"
+      "Viewer.KeyFrameSize: 0.05\nViewer.PointSize: 2\n";
+  io::ConfigFile file = io::ConfigFile::from_string(text, "TUM3.yaml");
+  PinholeCamera camera;
+  SystemOptions options;
+  apply_config(file, camera, options);
+  EXPECT_DOUBLE_EQ(camera.fx, 535.4);
+  EXPECT_DOUBLE_EQ(camera.cy, 247.6);
+  EXPECT_EQ(camera.width, 640);
+  EXPECT_DOUBLE_EQ(camera.depth_factor, 5000.0);
+  EXPECT_EQ(options.orb.num_features, 1200);
+  EXPECT_EQ(options.tracker.max_frames_between_keyframes, 30);
+}
+
+TEST(Config, UnknownKeysAndBadValuesAreErrorsNamingTheFile) {
+  PinholeCamera camera;
+  SystemOptions options;
+  io::ConfigFile typo = io::ConfigFile::from_string("orb:\n  num_featurs: 10\n", "my.yaml");
+  const std::string m1 = message_of([&] { apply_config(typo, camera, options); });
+  EXPECT_NE(m1.find("my.yaml"), std::string::npos) << m1;
+  EXPECT_NE(m1.find("orb.num_featurs"), std::string::npos) << m1;
+
+  io::ConfigFile zero_fx = io::ConfigFile::from_string(
+      "camera: {fx: 0, fy: 500, cx: 320, cy: 240, width: 640, height: 480}\n", "cam.yaml");
+  const std::string m2 = message_of([&] { apply_config(zero_fx, camera, options); });
+  EXPECT_NE(m2.find("cam.yaml"), std::string::npos) << m2;
+  EXPECT_NE(m2.find("fx"), std::string::npos) << m2;
+
+  io::ConfigFile negative = io::ConfigFile::from_string(
+      "camera: {fx: 500, fy: 500, cx: 320, cy: 240, width: 640, height: 480, "
+      "depth_factor: -5000}\n",
+      "neg.yaml");
+  EXPECT_NE(message_of([&] { apply_config(negative, camera, options); }).find("depth"),
+            std::string::npos);
+
+  io::ConfigFile bad_option = io::ConfigFile::from_string("tracker: {max_depth: -1}\n", "opt.yaml");
+  PinholeCamera good;
+  good.fx = good.fy = 500;
+  good.cx = 320;
+  good.cy = 240;
+  good.width = 640;
+  good.height = 480;
+  EXPECT_NE(message_of([&] { apply_config(bad_option, good, options); }).find("max_depth"),
+            std::string::npos);
+}
+
+TEST(Config, CameraFromFolderNameCameraYamlAndSettings) {
+  TempDir dir;
+  fs::create_directories(dir.path() / "rgbd_dataset_freiburg1_xyz");
+  const RunConfig fr1 =
+      resolve_run_config((dir.path() / "rgbd_dataset_freiburg1_xyz").string(), std::nullopt);
+  EXPECT_NEAR(fr1.camera.fx, 517.306408, 1e-9);
+  EXPECT_TRUE(fr1.camera.has_distortion());
+
+  fs::create_directories(dir.path() / "my_sequence");
+  EXPECT_THROW(resolve_run_config((dir.path() / "my_sequence").string(), std::nullopt), InputError);
+  dir.write("my_sequence/camera.yaml",
+            "camera:\n  fx: 500\n  fy: 501\n  cx: 319.5\n  cy: 239.5\n  width: 640\n  height: "
+            "480\n  depth_factor: 5000\n  bf: 40\n");
+  const RunConfig own = resolve_run_config((dir.path() / "my_sequence").string(), std::nullopt);
+  EXPECT_DOUBLE_EQ(own.camera.fy, 501.0);
+
+  const auto settings =
+      dir.write("override.yaml", "camera:\n  fx: 480\norb:\n  num_features: 800\n");
+  const RunConfig over =
+      resolve_run_config((dir.path() / "my_sequence").string(), settings.string());
+  EXPECT_DOUBLE_EQ(over.camera.fx, 480.0);
+  EXPECT_DOUBLE_EQ(over.camera.fy, 501.0);
+  EXPECT_EQ(over.options.orb.num_features, 800);
+}
+
+TEST(Config, EffectiveConfigLoadsBackUnchanged) {
+  RunConfig config;
+  config.camera.fx = 525;
+  config.camera.fy = 526;
+  config.camera.cx = 319.5;
+  config.camera.cy = 239.5;
+  config.camera.width = 640;
+  config.camera.height = 480;
+  config.options.orb.num_features = 1234;
+  config.options.tracker.depth_weight = 0.25;
+  config.options.mapper.ba_keyframes = 17;
+  config.options.sequential = true;
+  config.camera_source = "test";
+  io::ConfigFile file = io::ConfigFile::from_string(to_yaml(config), "config.yaml");
+  PinholeCamera camera;
+  SystemOptions options;
+  apply_config(file, camera, options);  // throws on any key it does not know
+  EXPECT_DOUBLE_EQ(camera.fy, 526.0);
+  EXPECT_EQ(options.orb.num_features, 1234);
+  EXPECT_DOUBLE_EQ(options.tracker.depth_weight, 0.25);
+  EXPECT_EQ(options.mapper.ba_keyframes, 17);
+  EXPECT_TRUE(options.sequential);
+}
+
+}  // namespace
+}  // namespace mcslam::slam

@@ -1,0 +1,143 @@
+#include "mcslam/slam/system.hpp"
+
+#include <gtest/gtest.h>
+
+#include "mcslam/core/error.hpp"
+#include "mcslam/eval/metrics.hpp"
+#include "synthetic_fixture.hpp"
+
+namespace mcslam::slam {
+namespace {
+
+SystemOptions sequential_options() {
+  SystemOptions o;
+  o.sequential = true;
+  return o;
+}
+
+struct RunResult {
+  Trajectory trajectory;
+  int tracked = 0;
+  int lost = 0;
+  int relocalised = 0;
+};
+
+RunResult run(const test::RenderedSequence& seq, const SystemOptions& options, int first = 0,
+              int last = -1) {
+  System system(seq.camera, options);
+  RunResult r;
+  const int end = last < 0 ? static_cast<int>(seq.frames.size()) : last;
+  for (int i = first; i < end; ++i) {
+    const auto& f = seq.frames[static_cast<std::size_t>(i)];
+    const FrameResult fr =
+        system.process(f.rgb, f.depth, seq.groundtruth[static_cast<std::size_t>(i)].timestamp);
+    r.tracked += fr.state == TrackingState::kOk ? 1 : 0;
+    r.lost += fr.state == TrackingState::kLost ? 1 : 0;
+    r.relocalised += fr.relocalised ? 1 : 0;
+  }
+  system.finish();
+  r.trajectory = system.trajectory();
+  return r;
+}
+
+TEST(System, TracksSyntheticRoomToMillimetres) {
+  const auto& seq = test::rendered_sequence(150, false);
+  const RunResult r = run(seq, sequential_options());
+  EXPECT_EQ(r.tracked, 150);
+  const auto report = eval::evaluate(seq.groundtruth, r.trajectory);
+  EXPECT_LT(report.ate.translation.rmse, 0.005) << eval::to_text(report);
+  EXPECT_LT(report.rpe_frame.rotation.rmse, 0.002);
+}
+
+TEST(System, TracksSyntheticRoomWithKinectNoiseAndFastMotion) {
+  const auto& seq = test::rendered_sequence(120, true, 2.5);
+  const RunResult r = run(seq, sequential_options());
+  EXPECT_GE(r.tracked, 119);
+  const auto report = eval::evaluate(seq.groundtruth, r.trajectory);
+  EXPECT_LT(report.ate.translation.rmse, 0.012) << eval::to_text(report);
+}
+
+TEST(System, ThreadedMappingTracksToo) {
+  const auto& seq = test::rendered_sequence(150, false);
+  SystemOptions options;
+  options.sequential = false;
+  const RunResult r = run(seq, options);
+  EXPECT_EQ(r.tracked, 150);
+  EXPECT_LT(eval::evaluate(seq.groundtruth, r.trajectory).ate.translation.rmse, 0.01);
+}
+
+TEST(System, SequentialModeIsDeterministic) {
+  const auto& seq = test::rendered_sequence(150, false);
+  const RunResult a = run(seq, sequential_options(), 0, 60);
+  const RunResult b = run(seq, sequential_options(), 0, 60);
+  ASSERT_EQ(a.trajectory.size(), b.trajectory.size());
+  for (std::size_t i = 0; i < a.trajectory.size(); ++i) {
+    EXPECT_EQ(a.trajectory[i].timestamp, b.trajectory[i].timestamp);
+    EXPECT_EQ((a.trajectory[i].T_w_c.translation() - b.trajectory[i].T_w_c.translation()).norm(),
+              0.0);
+  }
+}
+
+TEST(System, BadFramesAreLostNotCrashes) {
+  const auto& seq = test::rendered_sequence(150, false);
+  System system(seq.camera, sequential_options());
+  // Before initialisation: empty, wrong size, wrong type, black.
+  EXPECT_NE(system.process(cv::Mat(), cv::Mat(), 1.0).state, TrackingState::kOk);
+  EXPECT_NE(system.process(cv::Mat(10, 10, CV_8UC3), cv::Mat(10, 10, CV_32FC1), 1.01).state,
+            TrackingState::kOk);
+  const auto& f0 = seq.frames[0];
+  cv::Mat depth16;
+  f0.depth.convertTo(depth16, CV_16U, 5000.0);
+  EXPECT_NE(system.process(f0.rgb, depth16, 1.02).state, TrackingState::kOk);
+  const cv::Mat black = cv::Mat::zeros(f0.rgb.size(), CV_8UC3);
+  EXPECT_EQ(system.process(black, f0.depth, 1.03).state, TrackingState::kNotInitialized);
+  const cv::Mat no_depth = cv::Mat::zeros(f0.depth.size(), CV_32FC1);
+  EXPECT_EQ(system.process(f0.rgb, no_depth, 1.04).state, TrackingState::kNotInitialized);
+  // Then good frames start the map, and a black frame in the middle is a lost frame.
+  for (int i = 0; i < 10; ++i)
+    EXPECT_EQ(
+        system.process(seq.frames[i].rgb, seq.frames[i].depth, seq.groundtruth[i].timestamp).state,
+        TrackingState::kOk);
+  EXPECT_EQ(system.process(black, seq.frames[10].depth, seq.groundtruth[10].timestamp).state,
+            TrackingState::kLost);
+  EXPECT_EQ(
+      system.process(seq.frames[11].rgb, seq.frames[11].depth, seq.groundtruth[11].timestamp).state,
+      TrackingState::kOk);
+}
+
+TEST(System, RelocalisesAfterAGapWithTheCameraMoved) {
+  const auto& seq = test::rendered_sequence(150, false);
+  System system(seq.camera, sequential_options());
+  for (int i = 0; i < 60; ++i)
+    system.process(seq.frames[i].rgb, seq.frames[i].depth, seq.groundtruth[i].timestamp);
+  const cv::Mat black = cv::Mat::zeros(seq.frames[0].rgb.size(), CV_8UC3);
+  for (int i = 60; i < 64; ++i)
+    EXPECT_EQ(system.process(black, seq.frames[i].depth, seq.groundtruth[i].timestamp).state,
+              TrackingState::kLost);
+  // The camera moved on while the images were black: frames 64..74 are skipped.
+  bool relocalised = false;
+  for (int i = 75; i < 90 && !relocalised; ++i) {
+    const FrameResult r =
+        system.process(seq.frames[i].rgb, seq.frames[i].depth, seq.groundtruth[i].timestamp);
+    relocalised = r.relocalised;
+    if (relocalised) {
+      ASSERT_TRUE(r.T_w_c.has_value());
+      // World frame = first camera: compare with ground truth relative to frame 0.
+      const SE3 truth = seq.groundtruth[0].T_w_c.inverse() * seq.groundtruth[i].T_w_c;
+      EXPECT_LT((r.T_w_c->translation() - truth.translation()).norm(), 0.03);
+    }
+  }
+  EXPECT_TRUE(relocalised);
+}
+
+TEST(System, RejectsInvalidCameraAndOptions) {
+  PinholeCamera bad;
+  EXPECT_THROW(System(bad, SystemOptions{}), InputError);
+  const auto& seq = test::rendered_sequence(150, false);
+  SystemOptions options;
+  options.orb.num_levels = 0;
+  EXPECT_THROW(System(seq.camera, options), InputError);
+}
+
+}  // namespace
+}  // namespace mcslam::slam
