@@ -24,6 +24,7 @@ void read_camera(io::ConfigFile& f, PinholeCamera& c) {
   f.read("camera.k3", c.distortion[4]);
   f.read("camera.depth_factor", c.depth_factor);
   f.read("camera.bf", c.bf);
+  f.read("camera.readout_time", c.readout_time);
   // ORB-SLAM2 keys.
   f.read("Camera.fx", c.fx);
   f.read("Camera.fy", c.fy);
@@ -174,7 +175,7 @@ std::string to_yaml(const RunConfig& c) {
     << "\n  k1: " << cam.distortion[0] << "\n  k2: " << cam.distortion[1]
     << "\n  p1: " << cam.distortion[2] << "\n  p2: " << cam.distortion[3]
     << "\n  k3: " << cam.distortion[4] << "\n  depth_factor: " << cam.depth_factor
-    << "\n  bf: " << cam.bf << "\n";
+    << "\n  bf: " << cam.bf << "\n  readout_time: " << cam.readout_time << "\n";
   s << "orb:\n  num_features: " << o.orb.num_features << "\n  num_levels: " << o.orb.num_levels
     << "\n  scale_factor: " << o.orb.scale_factor << "\n  fast_threshold: " << o.orb.fast_threshold
     << "\n  min_fast_threshold: " << o.orb.min_fast_threshold << "\n";

@@ -26,9 +26,11 @@ std::optional<float> FrameBuilder::depth_at(const cv::Mat& depth, double u, doub
 }
 
 Frame FrameBuilder::build(std::uint64_t id, double timestamp, const cv::Mat& gray,
-                          const cv::Mat& depth, const std::optional<SE3>& T_rgb_depth) const {
-  const bool compensate = T_rgb_depth.has_value();
-  const SE3 T_rgb_d = compensate ? *T_rgb_depth : SE3();
+                          const cv::Mat& depth, const FrameMotion& motion) const {
+  const bool compensate = motion.T_rgb_depth.has_value();
+  const SE3 T_rgb_d = compensate ? *motion.T_rgb_depth : SE3();
+  const bool rolling = motion.readout_time > 0.0 && motion.angular_velocity.norm() > 0.0;
+  const double half_height = 0.5 * camera_.height;
   const SE3 T_d_rgb = T_rgb_d.inverse();
   auto result = std::make_shared<features::FrameFeatures>();
   features::OrbFeatures orb = extractor_.extract(gray);
@@ -55,10 +57,25 @@ Frame FrameBuilder::build(std::uint64_t id, double timestamp, const cv::Mat& gra
       }
       d = d_seen;
     }
+    if (rolling) {
+      // Row v was exposed (v - H/2) / H * readout after the middle row: rotate its bearing back.
+      const double tau = (uv.y() - half_height) / camera_.height * motion.readout_time;
+      const Eigen::Matrix3d R_t_tau = so3_exp(motion.angular_velocity * tau).toRotationMatrix();
+      const Eigen::Vector3d bearing = camera_.unproject(uv, d ? *d : 1.0);
+      const Eigen::Vector3d at_middle = R_t_tau.transpose() * bearing;
+      if (at_middle.z() > 0.0) {
+        p.keypoint.uv = camera_.project(at_middle).cast<float>();
+        if (d) d = static_cast<float>(at_middle.z());
+      }
+    }
     if (d) {
       p.depth = *d;
       p.u_right = static_cast<float>(camera_.right_u(p.keypoint.uv.x(), *d));
     }
+  }
+  if (rolling) {
+    for (std::size_t i = 0; i < orb.keypoints.size(); ++i)
+      orb.keypoints[i] = result->points[i].keypoint;
   }
   result->grid = features::KeypointGrid(orb.keypoints, camera_.width, camera_.height);
   result->pyramid = pyramid_;

@@ -54,12 +54,15 @@ FrameResult System::process(const cv::Mat& rgb, const cv::Mat& depth, double tim
   result.times.add("undistort", watch.elapsed_ms());
 
   watch.restart();
-  std::optional<SE3> T_rgb_depth;
+  FrameMotion motion;
   if (options_.tracker.compensate_depth_time && depth_timestamp &&
       std::abs(*depth_timestamp - timestamp) > 1e-4)
-    T_rgb_depth = tracker_->predicted_motion(timestamp - *depth_timestamp);
-  const Frame frame =
-      builder_->build(result.frame_id, timestamp, gray, undistorted_depth, T_rgb_depth);
+    motion.T_rgb_depth = tracker_->predicted_motion(timestamp - *depth_timestamp);
+  if (camera_.readout_time > 0.0) {
+    motion.readout_time = camera_.readout_time;
+    motion.angular_velocity = tracker_->angular_velocity();
+  }
+  const Frame frame = builder_->build(result.frame_id, timestamp, gray, undistorted_depth, motion);
   result.features = static_cast<int>(frame.features->points.size());
   result.times.add("orb_extract", watch.elapsed_ms());
 

@@ -200,6 +200,12 @@ std::optional<SE3> Tracker::predicted_motion(double dt) const {
   return SE3::exp(velocity_->log() * (dt / velocity_dt_));
 }
 
+Eigen::Vector3d Tracker::angular_velocity() const {
+  if (!velocity_ || !(velocity_dt_ > 1e-4) || state_ != TrackingState::kOk)
+    return Eigen::Vector3d::Zero();
+  return so3_log(velocity_->quaternion()) / velocity_dt_;
+}
+
 std::optional<SE3> Tracker::keyframe_pose(map::KeyFrameId id) const {
   {
     auto lock = map_.read_lock();

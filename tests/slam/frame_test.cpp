@@ -13,7 +13,9 @@ namespace {
 double median_depth_error(const FrameBuilder& builder, const cv::Mat& gray, const cv::Mat& depth,
                           const cv::Mat& true_depth, const std::optional<SE3>& T_rgb_depth,
                           int* with_depth) {
-  const Frame frame = builder.build(0, 1.0, gray, depth, T_rgb_depth);
+  FrameMotion motion;
+  motion.T_rgb_depth = T_rgb_depth;
+  const Frame frame = builder.build(0, 1.0, gray, depth, motion);
   std::vector<double> errors;
   for (const auto& p : frame.features->points) {
     if (!p.has_depth()) continue;

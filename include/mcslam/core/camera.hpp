@@ -23,6 +23,9 @@ struct PinholeCamera {
   /// Virtual stereo baseline times fx (ORB-SLAM2's Camera.bf), in pixel*metres. It turns a
   /// depth z into a virtual right-image coordinate u_r = u - bf / z.
   double bf = 40.0;
+  /// Rolling shutter: time (s) between the exposure of the first and the last image row; 0 for a
+  /// global shutter. Keypoints are corrected with the tracked angular velocity when > 0.
+  double readout_time = 0.0;
 
   /// An empty optional when the parameters are usable; otherwise what is wrong.
   std::optional<std::string> check() const;

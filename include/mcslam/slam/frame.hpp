@@ -19,18 +19,26 @@ struct Frame {
   std::shared_ptr<const features::FrameFeatures> features;
 };
 
+/// Known camera motion around the frame, used to undo capture-time effects.
+struct FrameMotion {
+  /// From the depth image's capture time to the colour image's: each keypoint's depth is read
+  /// where the depth camera saw that point and moved to the colour capture time; depths that
+  /// disagree along the way (depth discontinuities) are dropped.
+  std::optional<SE3> T_rgb_depth;
+  /// Angular velocity (rad/s, camera frame) and rolling-shutter readout time (s, top to bottom
+  /// row): keypoints are moved to where they would be seen at the middle row's time.
+  Eigen::Vector3d angular_velocity = Eigen::Vector3d::Zero();
+  double readout_time = 0.0;
+};
+
 /// Builds the per-keypoint depth and virtual right coordinate. `gray` is CV_8UC1 and `depth` is
 /// CV_32FC1 in metres (0 = missing), both undistorted and of the camera's size.
 class FrameBuilder {
  public:
   FrameBuilder(const PinholeCamera& camera, const features::OrbOptions& orb, double min_depth,
                double max_depth);
-  /// `T_rgb_depth`, when given, is the camera motion from the depth image's capture time to the
-  /// colour image's: each keypoint's depth is then read where the depth camera saw that point
-  /// and moved to the colour capture time, and depths that disagree along the way (depth
-  /// discontinuities) are dropped.
   Frame build(std::uint64_t id, double timestamp, const cv::Mat& gray, const cv::Mat& depth,
-              const std::optional<SE3>& T_rgb_depth = std::nullopt) const;
+              const FrameMotion& motion = {}) const;
   const std::shared_ptr<const features::ScalePyramid>& pyramid() const { return pyramid_; }
 
  private:

@@ -57,6 +57,8 @@ class Tracker {
   /// The camera's motion over `dt` seconds at the current velocity estimate, as the transform
   /// from the camera at time t to the camera at t + dt; nullopt without an estimate.
   std::optional<SE3> predicted_motion(double dt) const;
+  /// Angular velocity of the camera (rad/s, camera frame); zero without an estimate.
+  Eigen::Vector3d angular_velocity() const;
 
  private:
   struct Match {
