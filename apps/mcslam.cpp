@@ -31,7 +31,13 @@ int eval_command(const std::string& gt_path, const std::string& est_path, bool b
   if (bonn) gt = mcslam::eval::bonn_marker_to_camera(gt);
   mcslam::eval::EvalOptions options;
   options.max_time_difference = max_dt;
-  const mcslam::eval::EvalReport report = mcslam::eval::evaluate(gt, est, options);
+  mcslam::eval::EvalReport report;
+  try {
+    report = mcslam::eval::evaluate(gt, est, options);
+  } catch (const mcslam::InputError& e) {
+    throw mcslam::InputError(
+        mcslam::file_error(est_path, std::string(e.what()) + " (ground truth: " + gt_path + ")"));
+  }
   if (json)
     std::cout << mcslam::eval::to_json(report).dump(2) << "\n";
   else
@@ -95,6 +101,8 @@ int main(int argc, char** argv) {
   synth_cmd->add_option("--texture", texture, "rich or low")->check(CLI::IsMember({"rich", "low"}));
   synth_cmd->add_flag("--depth-noise", synth_options.depth_noise, "Kinect-like depth noise");
   synth_cmd->add_option("--speed", synth_options.speed, "Camera speed factor");
+  synth_cmd->add_option("--readout-time", synth_options.readout_time,
+                        "Rolling-shutter readout time in seconds (0 = global shutter)");
   synth_cmd->add_option("--width", synth_options.width, "Image width");
   synth_cmd->add_option("--height", synth_options.height, "Image height");
   synth_cmd->add_flag("--quiet,-q", quiet, "No progress");

@@ -15,6 +15,7 @@ PACKAGES=(
   libgtest-dev libgmock-dev
   libbenchmark-dev
   clang-format
+  python3
 )
 
 missing=()

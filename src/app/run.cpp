@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iomanip>
+#include <iostream>
 #include <map>
 #include <sstream>
 
@@ -75,6 +76,8 @@ nlohmann::json run_sequence(const RunRequest& request) {
   io::SequenceOptions seq_options;
   if (request.associations_path) seq_options.associations_file = *request.associations_path;
   const io::RgbdSequence sequence = io::RgbdSequence::open(request.sequence_dir, seq_options);
+  for (const auto& warning : sequence.warnings())
+    std::cerr << "mcslam: warning: " << warning << "\n";
   slam::RunConfig config = slam::resolve_run_config(request.sequence_dir, request.config_path);
   if (request.sequential) config.options.sequential = *request.sequential;
   io::ensure_directory(request.output_dir);

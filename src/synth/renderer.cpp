@@ -6,6 +6,7 @@
 #include <limits>
 #include <opencv2/core/utility.hpp>
 
+#include "mcslam/core/error.hpp"
 #include "random.hpp"
 
 namespace mcslam::synth {
@@ -180,8 +181,11 @@ inline void shade_hit(const FrameSetup& f, const Hit& hit, const Eigen::Vector3d
   for (int c = 0; c < 3; ++c) out[c] *= shade;
 }
 
-FrameSetup setup_frame(const Scene& scene, const PinholeCamera& camera, const SE3& T_w_c,
-                       double t) {
+/// The view from T_w_c at time t. Boxes entirely outside the image are dropped, unless
+/// keep_all_boxes (rolling shutter: then boxes[b] is Scene::objects[b] in every row's setup, so
+/// that primitive ids compare across rows); a kept box outside the image never passes culling.
+FrameSetup setup_frame(const Scene& scene, const PinholeCamera& camera, const SE3& T_w_c, double t,
+                       bool keep_all_boxes = false) {
   FrameSetup f;
   f.fx = camera.fx, f.fy = camera.fy, f.cx = camera.cx, f.cy = camera.cy;
   const SE3 T_c_w = T_w_c.inverse();
@@ -234,8 +238,10 @@ FrameSetup setup_frame(const Scene& scene, const PinholeCamera& camera, const SE
     }
     if (in_front) {
       b.u_min = u0 - 1.0, b.u_max = u1 + 1.0, b.v_min = v0 - 1.0, b.v_max = v1 + 1.0;
-      if (b.u_max < -1.0 || b.v_max < -1.0 || b.u_min > camera.width || b.v_min > camera.height)
-        continue;  // entirely outside the image
+      if (b.u_max < -1.0 || b.v_max < -1.0 || b.u_min > camera.width || b.v_min > camera.height) {
+        if (!keep_all_boxes) continue;  // entirely outside the image
+        b.u_min = b.v_min = kInf;
+      }
     }
     f.boxes.push_back(b);
   }
@@ -282,9 +288,14 @@ cv::Mat apply_kinect_depth_noise(const cv::Mat& depth, std::uint64_t seed) {
 Renderer::Renderer(const Scene& scene, const PinholeCamera& camera, const RenderOptions& options)
     : scene_(scene), camera_(camera), options_(options) {}
 
-RenderedFrame Renderer::render(const SE3& T_w_c, double t) const {
-  const FrameSetup f = setup_frame(scene_, camera_, T_w_c, t);
-  const int w = camera_.width, h = camera_.height;
+namespace {
+
+/// Renders the image with setup_of(y) (a const FrameSetup&) describing the view of row y, so that
+/// a global-shutter render (one setup) pays nothing for the rolling-shutter option.
+template <class SetupOfRow>
+RenderedFrame render_rows(const PinholeCamera& camera, const RenderOptions& options, double t,
+                          const SetupOfRow& setup_of) {
+  const int w = camera.width, h = camera.height;
   RenderedFrame frame;
   frame.depth.create(h, w, CV_32FC1);
   frame.labels.create(h, w, CV_16SC1);
@@ -294,6 +305,7 @@ RenderedFrame Renderer::render(const SE3& T_w_c, double t) const {
   // Pass 1: one ray through each pixel centre.
   cv::parallel_for_(cv::Range(0, h), [&](const cv::Range& rows) {
     for (int y = rows.start; y < rows.end; ++y) {
+      const FrameSetup& f = setup_of(y);
       float* depth_row = frame.depth.ptr<float>(y);
       std::int16_t* label_row = frame.labels.ptr<std::int16_t>(y);
       int* prim_row = prim.ptr<int>(y);
@@ -310,14 +322,14 @@ RenderedFrame Renderer::render(const SE3& T_w_c, double t) const {
   });
 
   // Pass 2: anti-alias geometric edges with 4 rotated-grid subsamples, then add noise.
-  const std::uint64_t frame_seed =
-      detail::hash_combine(options_.noise_seed, detail::hash_double(t));
-  const float sigma = static_cast<float>(options_.rgb_noise_sigma);
+  const std::uint64_t frame_seed = detail::hash_combine(options.noise_seed, detail::hash_double(t));
+  const float sigma = static_cast<float>(options.rgb_noise_sigma);
   static constexpr double kSub[4][2] = {
       {-0.125, -0.375}, {0.375, -0.125}, {0.125, 0.375}, {-0.375, 0.125}};
   frame.rgb.create(h, w, CV_8UC3);
   cv::parallel_for_(cv::Range(0, h), [&](const cv::Range& rows) {
     for (int y = rows.start; y < rows.end; ++y) {
+      const FrameSetup& f = setup_of(y);
       const int* prim_row = prim.ptr<int>(y);
       const cv::Vec3f* colour_row = colour.ptr<cv::Vec3f>(y);
       cv::Vec3b* rgb_row = frame.rgb.ptr<cv::Vec3b>(y);
@@ -358,9 +370,37 @@ RenderedFrame Renderer::render(const SE3& T_w_c, double t) const {
     }
   });
 
-  if (options_.depth_noise)
+  if (options.depth_noise)
     frame.depth = apply_kinect_depth_noise(frame.depth, detail::hash_combine(frame_seed, 0xDE97));
   return frame;
+}
+
+}  // namespace
+
+RenderedFrame Renderer::render(const SE3& T_w_c, double t) const {
+  const FrameSetup f = setup_frame(scene_, camera_, T_w_c, t);
+  return render_rows(camera_, options_, t, [&f](int) -> const FrameSetup& { return f; });
+}
+
+double Renderer::row_time(double t, int row, double readout_time) const {
+  return t + (row + 0.5 - 0.5 * camera_.height) / camera_.height * readout_time;
+}
+
+RenderedFrame Renderer::render(const std::function<SE3(double)>& T_w_c_at, double t,
+                               double readout_time) const {
+  if (!std::isfinite(readout_time) || readout_time < 0.0)
+    throw InputError("Renderer::render: readout_time must be finite and >= 0");
+  if (readout_time == 0.0) return render(T_w_c_at(t), t);
+  // One view per row (cheap next to the rays; serial, so T_w_c_at need not be thread-safe).
+  std::vector<FrameSetup> setups;
+  setups.reserve(static_cast<std::size_t>(camera_.height));
+  for (int y = 0; y < camera_.height; ++y) {
+    const double t_row = row_time(t, y, readout_time);
+    setups.push_back(setup_frame(scene_, camera_, T_w_c_at(t_row), t_row, true));
+  }
+  return render_rows(camera_, options_, t, [&setups](int y) -> const FrameSetup& {
+    return setups[static_cast<std::size_t>(y)];
+  });
 }
 
 }  // namespace mcslam::synth

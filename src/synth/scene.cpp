@@ -81,6 +81,8 @@ std::optional<std::string> SynthOptions::check() const {
   if (!finite(speed) || speed < 0.0) return "speed must be finite and >= 0";
   if (!finite(rgb_noise_sigma) || rgb_noise_sigma < 0.0)
     return "rgb_noise_sigma must be finite and >= 0";
+  if (!finite(readout_time) || readout_time < 0.0 || readout_time > 0.1)
+    return "readout_time must be finite and in [0, 0.1] s";
   return std::nullopt;
 }
 
@@ -94,6 +96,7 @@ PinholeCamera SynthOptions::camera() const {
   camera.height = height;
   camera.depth_factor = 5000.0;
   camera.bf = 40.0;
+  camera.readout_time = readout_time;
   return camera;
 }
 

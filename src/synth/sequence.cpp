@@ -73,6 +73,11 @@ SyntheticSequence::SyntheticSequence(const SynthOptions& options)
 
 RenderedFrame SyntheticSequence::frame(int i) const {
   if (i < 0 || i >= size()) throw std::out_of_range("SyntheticSequence::frame: bad index");
+  if (options_.readout_time > 0.0) {
+    const double speed = options_.speed;
+    return renderer_.render([speed](double t) { return camera_pose_at(t, speed); }, time(i),
+                            options_.readout_time);
+  }
   return renderer_.render(T_w_c(i), time(i));
 }
 
@@ -103,6 +108,8 @@ void write_sequence(const std::string& directory, const SynthOptions& options,
         << "  height: " << camera.height << "\n"
         << "  depth_factor: " << format_double(camera.depth_factor) << "\n"
         << "  bf: " << format_double(camera.bf) << "\n";
+    if (camera.readout_time > 0.0)
+      out << "  readout_time: " << format_double(camera.readout_time) << "\n";
     close_output(out, path);
   }
 

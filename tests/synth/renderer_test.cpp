@@ -9,6 +9,7 @@
 #include <opencv2/imgproc.hpp>
 #include <random>
 
+#include "mcslam/core/error.hpp"
 #include "mcslam/synth/sequence.hpp"
 
 namespace mcslam::synth {
@@ -284,6 +285,84 @@ TEST(Renderer, FramesHaveContentInKinectRange) {
     cv::minMaxLoc(f.depth, &min_z);
     EXPECT_GT(min_z, 0.8) << "t = " << t;
   }
+}
+
+/// Distance of the world point p_w from the surface a pixel with `label` sees at time t.
+double distance_to_seen_surface(const Scene& scene, const Eigen::Vector3d& p_w, int label,
+                                double t) {
+  if (label < 0) return distance_to_room(scene, p_w);
+  const SceneObject& object = scene.objects.at(label);
+  return distance_to_box_surface(object.pose_at(t).inverse() * p_w, object.half_extents);
+}
+
+TEST(Renderer, RollingShutterRowsSeeTheSceneFromTheirRowTimePose) {
+  const SyntheticSequence& seq = rich_sequence();
+  const Renderer& renderer = seq.renderer();
+  const Scene& scene = seq.scene();
+  const PinholeCamera camera = seq.camera();
+  constexpr double kSpeed = 3.0, kReadout = 0.03;
+  const auto pose_at = [](double time) { return camera_pose_at(time, kSpeed); };
+  const int h = camera.height;
+  EXPECT_NEAR(renderer.row_time(1.0, 0, kReadout), 1.0 - 0.5 * kReadout + 0.5 * kReadout / h,
+              1e-12);
+  EXPECT_NEAR(renderer.row_time(1.0, h - 1, kReadout), 1.0 + 0.5 * kReadout - 0.5 * kReadout / h,
+              1e-12);
+  EXPECT_THROW(renderer.render(pose_at, 0.0, -0.01), InputError);
+
+  for (const double t : {1.5, 3.3}) {  // rotating at about 90 deg/s
+    const RenderedFrame rolling = renderer.render(pose_at, t, kReadout);
+    const RenderedFrame global = renderer.render(pose_at(t), t);
+    const SE3 T_c_w_mid = pose_at(t).inverse();
+    for (const int row : {0, h / 2, h - 1}) {
+      const double t_row = renderer.row_time(t, row, kReadout);
+      const SE3 T_row = pose_at(t_row);
+      double worst_distance = 0.0;
+      Eigen::Vector2d shift_sum = Eigen::Vector2d::Zero();
+      int n = 0;
+      for (int x = 0; x < camera.width; x += 2, ++n) {
+        const double z = rolling.depth.at<float>(row, x);
+        ASSERT_GT(z, 0.0) << "row " << row << " x " << x;
+        const Eigen::Vector2d uv(x, row);
+        const Eigen::Vector3d p_w = T_row * camera.unproject(uv, z);
+        const int label = rolling.labels.at<std::int16_t>(row, x);
+        worst_distance =
+            std::max(worst_distance, distance_to_seen_surface(scene, p_w, label, t_row));
+        // Where the global-shutter (middle-row pose) image sees this point.
+        shift_sum += camera.project(T_c_w_mid * p_w) - uv;
+      }
+      const Eigen::Vector2d shift = shift_sum / n;
+      const double rgb_change =
+          cv::norm(rolling.rgb.row(row), global.rgb.row(row), cv::NORM_L1) / (3.0 * camera.width);
+      std::printf(
+          "t %.1f row %3d: surface distance %.2g m with the row-time pose; mean shift to "
+          "the global-shutter image (%.2f, %.2f) px; mean RGB change %.1f\n",
+          t, row, worst_distance, shift.x(), shift.y(), rgb_change);
+      EXPECT_LT(worst_distance, 1e-6) << "row " << row;
+      if (row == h / 2) {
+        EXPECT_LT(shift.norm(), 0.1);  // 1/960 of the readout from the middle: nearly global
+      } else {
+        EXPECT_GT(shift.norm(), 4.0) << "row " << row;
+        EXPECT_GT(rgb_change, 5.0) << "row " << row;
+      }
+    }
+  }
+}
+
+TEST(Renderer, ZeroReadoutTimeIsTheGlobalShutterRender) {
+  const SyntheticSequence& seq = rich_sequence();
+  const Renderer& renderer = seq.renderer();
+  const auto pose_at = [](double time) { return camera_pose_at(time, 3.0); };
+  const RenderedFrame a = renderer.render(pose_at, 0.7, 0.0);
+  const RenderedFrame b = renderer.render(pose_at(0.7), 0.7);
+  EXPECT_EQ(cv::norm(a.rgb, b.rgb, cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::norm(a.depth, b.depth, cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::norm(a.labels, b.labels, cv::NORM_INF), 0.0);
+  // A static camera gives the global-shutter image whatever the readout time.
+  const auto still = [&](double) { return seq.T_w_c(5); };
+  const RenderedFrame c = renderer.render(still, 0.7, 0.05);
+  const RenderedFrame d = renderer.render(seq.T_w_c(5), 0.7);
+  EXPECT_EQ(cv::norm(c.rgb, d.rgb, cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::norm(c.depth, d.depth, cv::NORM_INF), 0.0);
 }
 
 TEST(Renderer, RenderTime) {

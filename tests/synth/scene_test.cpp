@@ -67,6 +67,16 @@ TEST(SynthOptions, CheckNamesTheBadField) {
   o = {};
   o.rgb_noise_sigma = std::nan("");
   expect_rejected(o, "rgb_noise_sigma");
+  o = {};
+  o.readout_time = -0.01;
+  expect_rejected(o, "readout_time");
+  o.readout_time = 0.2;
+  expect_rejected(o, "readout_time");
+  o.readout_time = std::nan("");
+  expect_rejected(o, "readout_time");
+  o.readout_time = 0.1;
+  EXPECT_FALSE(o.check().has_value());
+  EXPECT_EQ(o.camera().readout_time, 0.1);
 }
 
 TEST(Scene, RoomAndObjectsAreConsistent) {

@@ -148,6 +148,44 @@ TEST(WriteSequence, WritesReadableTumFolder) {
   }
 }
 
+TEST(SyntheticSequence, RollingShutterFramesKeepTheMiddleRowPose) {
+  SynthOptions o = small_options();
+  o.speed = 3.0;
+  const SyntheticSequence global(o);
+  o.readout_time = 0.03;
+  const SyntheticSequence rolling(o);
+  EXPECT_EQ(rolling.camera().readout_time, 0.03);
+  EXPECT_EQ(global.camera().readout_time, 0.0);
+  const auto pose_at = [](double t) { return camera_pose_at(t, 3.0); };
+  for (int i : {1, 4}) {
+    EXPECT_EQ((rolling.T_w_c(i).matrix() - global.T_w_c(i).matrix()).norm(), 0.0);
+    const RenderedFrame fr = rolling.frame(i), fg = global.frame(i);
+    const RenderedFrame expected = rolling.renderer().render(pose_at, rolling.time(i), 0.03);
+    EXPECT_EQ(cv::norm(fr.rgb, expected.rgb, cv::NORM_INF), 0.0);
+    EXPECT_EQ(cv::norm(fr.depth, expected.depth, cv::NORM_INF), 0.0);
+    EXPECT_GT(cv::norm(fr.depth, fg.depth, cv::NORM_INF), 0.01);
+    // The global-shutter sequence renders exactly as the single-pose renderer.
+    const RenderedFrame single = global.renderer().render(global.T_w_c(i), global.time(i));
+    EXPECT_EQ(cv::norm(fg.rgb, single.rgb, cv::NORM_INF), 0.0);
+    EXPECT_EQ(cv::norm(fg.depth, single.depth, cv::NORM_INF), 0.0);
+  }
+}
+
+TEST(WriteSequence, WritesReadoutTimeOnlyForARollingShutter) {
+  const TempDir tmp;
+  SynthOptions o = small_options();
+  o.frames = 1;
+  o.readout_time = 0.03;
+  write_sequence((tmp.path() / "rolling").string(), o);
+  EXPECT_EQ(read_all(tmp.path() / "rolling" / "camera.yaml"),
+            "camera:\n  fx: 131.25\n  fy: 131.25\n  cx: 79.5\n  cy: 59.5\n  width: 160\n"
+            "  height: 120\n  depth_factor: 5000.0\n  bf: 40.0\n  readout_time: 0.03\n");
+  o.readout_time = 0.0;
+  write_sequence((tmp.path() / "global").string(), o);
+  EXPECT_EQ(read_all(tmp.path() / "global" / "camera.yaml").find("readout_time"),
+            std::string::npos);
+}
+
 TEST(WriteSequence, ThrowsWhenTheDirectoryCannotBeCreated) {
   const TempDir tmp;
   fs::create_directories(tmp.path());

@@ -34,8 +34,9 @@ class Undistorter {
   bool active_ = false;
   int width_ = 0;
   int height_ = 0;
-  cv::Mat map_x_;  // CV_32FC1: raw-image column of each undistorted pixel
-  cv::Mat map_y_;  // CV_32FC1: raw-image row of each undistorted pixel
+  cv::Mat linear_map_;      // CV_16SC2: raw-image pixel of each undistorted pixel
+  cv::Mat linear_weights_;  // CV_16UC1: its bilinear interpolation weights
+  cv::Mat nearest_map_;     // CV_16SC2: nearest raw-image pixel
 };
 
 }  // namespace mcslam::io

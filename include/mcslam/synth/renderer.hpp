@@ -8,8 +8,14 @@
 // Colour: the surface albedo, sampled trilinearly from the texture's mip pyramid at the level
 // matching the pixel footprint (ray differentials), times a view-independent Lambertian shade;
 // pixels on geometric edges (a neighbour sees another face) average four rotated-grid subsamples.
+//
+// Rolling shutter: render(T_w_c_at, t, readout_time) renders each image row with its own exposure
+// time (see Renderer::row_time), like a Kinect-type sensor whose colour image and registered depth
+// share the row timing: row r of the RGB, depth and label images all see the scene from the camera
+// pose (and with the object poses) at that row's time.
 
 #include <cstdint>
+#include <functional>
 #include <opencv2/core.hpp>
 
 #include "mcslam/core/camera.hpp"
@@ -53,6 +59,19 @@ class Renderer {
   /// Renders the view of camera pose T_w_c at scene time t (object poses are taken at t).
   /// Thread-safe; uses cv::parallel_for_ over rows (the result does not depend on threading).
   RenderedFrame render(const SE3& T_w_c, double t) const;
+
+  /// Rolling-shutter render of the frame whose middle is at scene time t: image row r (RGB, depth
+  /// and labels alike) is rendered with the camera pose T_w_c_at(t_r) and object poses at t_r,
+  /// t_r = row_time(t, r, readout_time); so camera.unproject({u, r}, depth) is the hit point in
+  /// the camera frame T_w_c_at(t_r). Noise is seeded from t, as in render(T_w_c, t). With
+  /// readout_time == 0 this is exactly render(T_w_c_at(t), t). T_w_c_at is called once per row
+  /// (serially). Throws InputError when readout_time is negative or not finite.
+  RenderedFrame render(const std::function<SE3(double)>& T_w_c_at, double t,
+                       double readout_time) const;
+
+  /// Exposure time of image row `row` (its centre) in a frame whose middle is at time t, with
+  /// rows read top to bottom over readout_time seconds: t + (row + 0.5 - H/2) / H * readout_time.
+  double row_time(double t, int row, double readout_time) const;
 
   const Scene& scene() const { return scene_; }
   const PinholeCamera& camera() const { return camera_; }

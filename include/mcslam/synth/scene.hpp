@@ -44,10 +44,17 @@ struct SynthOptions {
   double speed = 1.0;
   /// Standard deviation of the per-frame Gaussian RGB noise, in grey levels (0 disables it).
   double rgb_noise_sigma = 2.0;
+  /// Rolling-shutter readout time in seconds (first to last row), in [0, 0.1]; 0 renders a global
+  /// shutter. When > 0, frame i's row r (colour and registered depth alike, as for a Kinect-like
+  /// sensor that reads both with the same row timing) is rendered with the camera pose at
+  /// t + (r + 0.5 - height / 2) / height * readout_time on the same camera path (t = i / fps; see
+  /// Renderer::render with a pose function); the ground-truth pose of the frame stays the pose
+  /// at t (the middle of the readout).
+  double readout_time = 0.0;
 
   /// An empty optional when usable; otherwise a message naming the bad field.
   std::optional<std::string> check() const;
-  /// The intrinsics: depth_factor 5000, bf 40, no distortion.
+  /// The intrinsics: depth_factor 5000, bf 40, no distortion, and readout_time.
   PinholeCamera camera() const;
 };
 

@@ -1,0 +1,439 @@
+// Tests of the real `mcslam` binary: outputs of `run`, `eval` and `synth`, and the exit code and
+// message for bad input.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <optional>
+#include <random>
+#include <set>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "mcslam/synth/sequence.hpp"
+
+#ifndef MCSLAM_EXE
+#error "MCSLAM_EXE must name the mcslam executable"
+#endif
+
+namespace {
+
+namespace fs = std::filesystem;
+
+// --- temporary folder, one per process, removed at the end -------------------------------------
+
+std::optional<fs::path>& root_slot() {
+  static std::optional<fs::path> root;
+  return root;
+}
+
+const fs::path& root() {
+  auto& slot = root_slot();
+  if (!slot) {
+    std::random_device rd;
+    const auto ticks = std::chrono::steady_clock::now().time_since_epoch().count();
+    const fs::path dir =
+        fs::temp_directory_path() / ("mcslam_cli_test_" + std::to_string(::getpid()) + "_" +
+                                     std::to_string(rd()) + "_" + std::to_string(ticks));
+    fs::create_directories(dir);
+    slot = dir;
+  }
+  return *slot;
+}
+
+class TempRootEnvironment : public testing::Environment {
+ public:
+  void TearDown() override {
+    if (auto& slot = root_slot()) {
+      std::error_code ec;
+      fs::remove_all(*slot, ec);
+      slot.reset();
+    }
+  }
+};
+
+[[maybe_unused]] testing::Environment* const kTempRootEnvironment =
+    testing::AddGlobalTestEnvironment(new TempRootEnvironment);
+
+// --- running the binary ------------------------------------------------------------------------
+
+std::string quote(const std::string& s) {
+  std::string out = "'";
+  for (char c : s) out += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return out + "'";
+}
+
+std::string read_file(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+void write_file(const fs::path& path, const std::string& text) {
+  std::ofstream out(path, std::ios::binary);
+  out << text;
+}
+
+struct CliResult {
+  int exit_code = -1;    // -1 when the process did not exit normally
+  bool crashed = false;  // ended by a signal
+  std::string out;
+  std::string err;
+};
+
+std::ostream& operator<<(std::ostream& os, const CliResult& r) {
+  return os << "exit " << r.exit_code << (r.crashed ? " (signal)" : "") << "\nstdout:\n"
+            << r.out << "\nstderr:\n"
+            << r.err;
+}
+
+/// Runs `mcslam <args>` (args already quoted) and captures its exit code and output.
+CliResult run_cli(const std::string& args) {
+  static int counter = 0;
+  const int n = counter++;
+  const fs::path out = root() / ("stdout_" + std::to_string(n) + ".txt");
+  const fs::path err = root() / ("stderr_" + std::to_string(n) + ".txt");
+  const std::string command = quote(MCSLAM_EXE) + " " + args + " >" + quote(out.string()) + " 2>" +
+                              quote(err.string()) + " </dev/null";
+  const int status = std::system(command.c_str());
+  CliResult r;
+  if (status != -1 && WIFEXITED(status)) r.exit_code = WEXITSTATUS(status);
+  // std::system runs /bin/sh, which reports a child killed by signal N as exit code 128 + N.
+  r.crashed = (status != -1 && WIFSIGNALED(status)) || r.exit_code > 128;
+  r.out = read_file(out);
+  r.err = read_file(err);
+  return r;
+}
+
+/// Bad input: exit code 1 (not 0, not a crash) and stderr containing every given piece.
+void expect_input_error(const CliResult& r, const std::vector<std::string>& pieces) {
+  EXPECT_FALSE(r.crashed) << r;
+  EXPECT_EQ(r.exit_code, 1) << r;
+  for (const auto& piece : pieces)
+    EXPECT_NE(r.err.find(piece), std::string::npos) << "stderr lacks '" << piece << "'\n" << r;
+}
+
+// --- sequences and runs shared by the tests of one process -------------------------------------
+
+const fs::path& main_sequence() {
+  static const fs::path dir = [] {
+    const fs::path d = root() / "synth_seq";
+    mcslam::synth::SynthOptions options;
+    options.frames = 40;  // 640x480 default camera
+    mcslam::synth::write_sequence(d.string(), options);
+    return d;
+  }();
+  return dir;
+}
+
+/// A tiny sequence to copy and break.
+const fs::path& small_sequence() {
+  static const fs::path dir = [] {
+    const fs::path d = root() / "small_seq";
+    mcslam::synth::SynthOptions options;
+    options.frames = 3;
+    options.width = 160;
+    options.height = 120;
+    options.fx = options.fy = 525.0 / 4.0;
+    options.cx = 79.5;
+    options.cy = 59.5;
+    mcslam::synth::write_sequence(d.string(), options);
+    return d;
+  }();
+  return dir;
+}
+
+fs::path copy_of_small_sequence(const std::string& name) {
+  const fs::path dst = root() / name;
+  fs::copy(small_sequence(), dst, fs::copy_options::recursive);
+  return dst;
+}
+
+struct MainRun {
+  fs::path out;
+  CliResult result;
+};
+
+/// `mcslam run SEQ --output OUT --sequential -q` on the main sequence, once per process.
+const MainRun& main_run() {
+  static const MainRun run = [] {
+    MainRun r;
+    r.out = root() / "out";
+    r.result = run_cli("run " + quote(main_sequence().string()) + " --output " +
+                       quote(r.out.string()) + " --sequential -q");
+    return r;
+  }();
+  return run;
+}
+
+std::vector<std::string> lines_of(const fs::path& path) {
+  std::ifstream in(path);
+  std::vector<std::string> lines;
+  for (std::string line; std::getline(in, line);) lines.push_back(line);
+  return lines;
+}
+
+/// First-column values of the non-comment, non-empty lines of a TUM-style file.
+std::vector<double> timestamps_of(const fs::path& path) {
+  std::vector<double> out;
+  for (const auto& line : lines_of(path)) {
+    if (line.empty() || line[0] == '#') continue;
+    std::istringstream s(line);
+    double t = 0.0;
+    s >> t;
+    out.push_back(t);
+  }
+  return out;
+}
+
+nlohmann::json read_json(const fs::path& path) {
+  std::ifstream in(path);
+  return nlohmann::json::parse(in);
+}
+
+// --- run ---------------------------------------------------------------------------------------
+
+TEST(CliRun, WritesAllOutputs) {
+  const MainRun& run = main_run();
+  ASSERT_EQ(run.result.exit_code, 0) << run.result;
+  EXPECT_TRUE(run.result.out.empty()) << "-q prints nothing\n" << run.result;
+  for (const char* name : {"trajectory.txt", "trajectory_online.txt", "keyframes.txt",
+                           "timings.csv", "summary.json", "config.yaml"})
+    EXPECT_TRUE(fs::is_regular_file(run.out / name)) << name;
+
+  const nlohmann::json summary = read_json(run.out / "summary.json");
+  ASSERT_TRUE(summary.contains("frames"));
+  EXPECT_EQ(summary["frames"].get<int>(), 40);
+  ASSERT_TRUE(summary.contains("tracked_ratio"));
+  EXPECT_GE(summary["tracked_ratio"].get<double>(), 0.9);
+  ASSERT_TRUE(summary.contains("lost_frames"));
+  EXPECT_EQ(summary["lost_frames"].get<int>(), 0);
+  EXPECT_TRUE(summary.contains("relocalisations"));
+  ASSERT_TRUE(summary.contains("stages"));
+  ASSERT_TRUE(summary["stages"].contains("tracking_total"));
+  ASSERT_TRUE(summary["stages"]["tracking_total"].contains("median_ms"));
+  EXPECT_GT(summary["stages"]["tracking_total"]["median_ms"].get<double>(), 0.0);
+  ASSERT_TRUE(summary.contains("ate_rmse_m")) << "groundtruth.txt exists";
+  EXPECT_LT(summary["ate_rmse_m"].get<double>(), 0.02);
+  EXPECT_GE(summary["ate_rmse_m"].get<double>(), 0.0);
+
+  // trajectory.txt: a header comment and one line per tracked frame, stamped as in rgb.txt.
+  const auto trajectory_lines = lines_of(run.out / "trajectory.txt");
+  ASSERT_FALSE(trajectory_lines.empty());
+  EXPECT_EQ(trajectory_lines.front().rfind("#", 0), 0u);
+  const std::vector<double> stamps = timestamps_of(run.out / "trajectory.txt");
+  EXPECT_EQ(static_cast<int>(stamps.size()), summary["tracked_frames"].get<int>());
+  const std::vector<double> rgb = timestamps_of(main_sequence() / "rgb.txt");
+  ASSERT_EQ(rgb.size(), 40u);
+  const std::set<double> rgb_set(rgb.begin(), rgb.end());
+  for (double t : stamps) EXPECT_EQ(rgb_set.count(t), 1u) << "trajectory timestamp " << t;
+  if (summary["tracked_ratio"].get<double>() == 1.0) {
+    EXPECT_EQ(stamps, rgb);
+  }
+
+  EXPECT_EQ(timestamps_of(run.out / "trajectory_online.txt"), stamps);
+  const std::vector<double> keyframes = timestamps_of(run.out / "keyframes.txt");
+  EXPECT_GE(keyframes.size(), 1u);
+  for (double t : keyframes) EXPECT_EQ(rgb_set.count(t), 1u) << "keyframe timestamp " << t;
+
+  // timings.csv: a header and one row per frame.
+  const auto csv = lines_of(run.out / "timings.csv");
+  ASSERT_EQ(csv.size(), 41u);
+  EXPECT_EQ(csv.front().rfind("frame,timestamp,state", 0), 0u) << csv.front();
+  EXPECT_NE(csv.front().find("total_ms"), std::string::npos);
+  for (std::size_t i = 1; i < csv.size(); ++i)
+    EXPECT_EQ(csv[i].rfind(std::to_string(i - 1) + ",", 0), 0u) << csv[i];
+}
+
+TEST(CliRun, EffectiveConfigLoadsBackAndSequentialRunIsDeterministic) {
+  const MainRun& run = main_run();
+  ASSERT_EQ(run.result.exit_code, 0) << run.result;
+  const fs::path out2 = root() / "out2";
+  const CliResult r =
+      run_cli("run " + quote(main_sequence().string()) + " --output " + quote(out2.string()) +
+              " --config " + quote((run.out / "config.yaml").string()) + " --sequential -q");
+  ASSERT_EQ(r.exit_code, 0) << r;
+  EXPECT_EQ(read_file(out2 / "trajectory.txt"), read_file(run.out / "trajectory.txt"));
+  EXPECT_EQ(read_file(out2 / "keyframes.txt"), read_file(run.out / "keyframes.txt"));
+  // The effective configuration is the same (the first line names where the camera came from).
+  auto config1 = lines_of(run.out / "config.yaml");
+  auto config2 = lines_of(out2 / "config.yaml");
+  ASSERT_FALSE(config1.empty());
+  ASSERT_FALSE(config2.empty());
+  config1.erase(config1.begin());
+  config2.erase(config2.begin());
+  EXPECT_EQ(config1, config2);
+}
+
+// --- eval --------------------------------------------------------------------------------------
+
+TEST(CliEval, PrintsJsonWithAte) {
+  const MainRun& run = main_run();
+  ASSERT_EQ(run.result.exit_code, 0) << run.result;
+  const CliResult r = run_cli("eval --gt " + quote((main_sequence() / "groundtruth.txt").string()) +
+                              " --est " + quote((run.out / "trajectory.txt").string()) + " --json");
+  ASSERT_EQ(r.exit_code, 0) << r;
+  nlohmann::json report;
+  ASSERT_NO_THROW(report = nlohmann::json::parse(r.out)) << r;
+  ASSERT_TRUE(report.contains("ate_rmse_m")) << report.dump(2);
+  EXPECT_GE(report["ate_rmse_m"].get<double>(), 0.0);
+  EXPECT_LT(report["ate_rmse_m"].get<double>(), 0.02);
+  const nlohmann::json summary = read_json(run.out / "summary.json");
+  EXPECT_NEAR(report["ate_rmse_m"].get<double>(), summary["ate_rmse_m"].get<double>(), 1e-6);
+}
+
+/// An estimate 1000 s later than the ground truth.
+fs::path shifted_estimate() {
+  const fs::path est = root() / "shifted_estimate.txt";
+  write_file(est,
+             "# timestamp tx ty tz qx qy qz qw\n"
+             "1001.0 0 0 0 0 0 0 1\n"
+             "1001.1 0.01 0 0 0 0 0 1\n"
+             "1001.2 0.02 0 0 0 0 0 1\n");
+  return est;
+}
+
+TEST(CliEval, EstimateWithoutTimeOverlapIsAnInputError) {
+  const fs::path est = shifted_estimate();
+  const CliResult r =
+      run_cli("eval --gt " + quote((small_sequence() / "groundtruth.txt").string()) + " --est " +
+              quote(est.string()));
+  expect_input_error(r, {"no estimated pose"});
+}
+
+// A time overlap error names the estimate and the ground truth.
+TEST(CliEval, EstimateWithoutTimeOverlapNamesTheFile) {
+  const fs::path est = shifted_estimate();
+  const CliResult r =
+      run_cli("eval --gt " + quote((small_sequence() / "groundtruth.txt").string()) + " --est " +
+              quote(est.string()));
+  expect_input_error(r, {est.string()});
+}
+
+// --- bad input to run --------------------------------------------------------------------------
+
+TEST(CliBadInput, MissingSequenceFolder) {
+  const fs::path missing = root() / "no_such_sequence";
+  const CliResult r =
+      run_cli("run " + quote(missing.string()) + " --output " + quote((root() / "o").string()));
+  expect_input_error(r, {missing.string(), "not found"});
+}
+
+TEST(CliBadInput, MalformedRgbListLine) {
+  const fs::path seq = copy_of_small_sequence("bad_rgb_list");
+  // The list has 3 comment lines, then one line per frame: break the second frame (line 5).
+  auto lines = lines_of(seq / "rgb.txt");
+  ASSERT_GE(lines.size(), 5u);
+  ASSERT_NE(lines[3].rfind("#", 0), 0u) << "line 4 is expected to be the first entry";
+  lines[4] = "1.033333 rgb/1.033333.png trailing-junk";
+  std::string text;
+  for (const auto& l : lines) text += l + "\n";
+  write_file(seq / "rgb.txt", text);
+  const CliResult r = run_cli("run " + quote(seq.string()) + " --output " +
+                              quote((root() / "o_bad_rgb").string()) + " --sequential -q");
+  expect_input_error(r, {"rgb.txt:5"});
+}
+
+TEST(CliBadInput, EightBitDepthImage) {
+  const fs::path seq = copy_of_small_sequence("bad_depth");
+  // The first depth image listed.
+  std::string listed;
+  for (const auto& line : lines_of(seq / "depth.txt")) {
+    if (line.empty() || line[0] == '#') continue;
+    std::istringstream s(line);
+    double t = 0.0;
+    s >> t >> listed;
+    break;
+  }
+  ASSERT_FALSE(listed.empty());
+  const fs::path depth = seq / listed;
+  ASSERT_TRUE(fs::is_regular_file(depth)) << depth;
+  ASSERT_TRUE(cv::imwrite(depth.string(), cv::Mat(120, 160, CV_8UC1, cv::Scalar(40))));
+  const CliResult r = run_cli("run " + quote(seq.string()) + " --output " +
+                              quote((root() / "o_bad_depth").string()) + " --sequential -q");
+  expect_input_error(r, {depth.filename().string(), "16-bit"});
+}
+
+TEST(CliBadInput, ConfigWithUnknownKey) {
+  const fs::path config = root() / "unknown_key.yaml";
+  write_file(config, "orb:\n  num_features: 500\nnot_a_setting: 3\n");
+  const CliResult r = run_cli("run " + quote(small_sequence().string()) + " --output " +
+                              quote((root() / "o_unknown").string()) + " --config " +
+                              quote(config.string()) + " -q");
+  expect_input_error(r, {config.string(), "not_a_setting"});
+}
+
+TEST(CliBadInput, ConfigWithZeroFocalLength) {
+  const fs::path config = root() / "zero_fx.yaml";
+  write_file(config, "%YAML:1.0\nCamera.fx: 0\n");
+  const CliResult r =
+      run_cli("run " + quote(small_sequence().string()) + " --output " +
+              quote((root() / "o_fx").string()) + " --config " + quote(config.string()) + " -q");
+  expect_input_error(r, {config.string(), "fx"});
+}
+
+TEST(CliBadInput, OutputUnderARegularFile) {
+  const fs::path file = root() / "a_regular_file";
+  write_file(file, "not a folder\n");
+  const fs::path out = file / "results";
+  const CliResult r = run_cli("run " + quote(small_sequence().string()) + " --output " +
+                              quote(out.string()) + " -q");
+  expect_input_error(r, {out.string(), "cannot create"});
+}
+
+TEST(CliBadInput, SettingsFileDoesNotExist) {
+  const fs::path config = root() / "missing_settings.yaml";
+  const CliResult r = run_cli("run " + quote(small_sequence().string()) + " --output " +
+                              quote((root() / "o_missing_cfg").string()) + " --config " +
+                              quote(config.string()) + " -q");
+  expect_input_error(r, {config.string(), "cannot open"});
+}
+
+TEST(CliUsage, UnknownSubcommandAndMissingOptionsFail) {
+  for (const std::string& args :
+       {std::string("frobnicate"), std::string(""),
+        "run " + quote(small_sequence().string()),  // no --output
+        std::string("eval --gt only.txt"), std::string("synth"),
+        "run " + quote(small_sequence().string()) + " --output " +
+            quote((root() / "o_usage").string()) + " --sequential --threaded"}) {
+    const CliResult r = run_cli(args);
+    EXPECT_FALSE(r.crashed) << args << "\n" << r;
+    EXPECT_NE(r.exit_code, 0) << args << "\n" << r;
+  }
+}
+
+// --- synth -------------------------------------------------------------------------------------
+
+TEST(CliSynth, WritesASequenceThatRunReads) {
+  const fs::path seq = root() / "cli_synth";
+  const CliResult s =
+      run_cli("synth --output " + quote(seq.string()) + " --frames 3 --width 160 --height 120 -q");
+  ASSERT_EQ(s.exit_code, 0) << s;
+  for (const char* name : {"rgb.txt", "depth.txt", "groundtruth.txt", "camera.yaml"})
+    EXPECT_TRUE(fs::is_regular_file(seq / name)) << name;
+  EXPECT_EQ(timestamps_of(seq / "rgb.txt").size(), 3u);
+  EXPECT_EQ(timestamps_of(seq / "depth.txt").size(), 3u);
+  EXPECT_EQ(timestamps_of(seq / "groundtruth.txt").size(), 3u);
+  const std::string camera = read_file(seq / "camera.yaml");
+  EXPECT_NE(camera.find("width: 160"), std::string::npos) << camera;
+  EXPECT_NE(camera.find("height: 120"), std::string::npos) << camera;
+
+  const fs::path out = root() / "o_cli_synth";
+  const CliResult r = run_cli("run " + quote(seq.string()) + " --output " + quote(out.string()) +
+                              " --sequential -q");
+  ASSERT_EQ(r.exit_code, 0) << r;
+  const nlohmann::json summary = read_json(out / "summary.json");
+  EXPECT_EQ(summary["frames"].get<int>(), 3);
+  EXPECT_EQ(timestamps_of(out / "trajectory.txt").size(),
+            static_cast<std::size_t>(summary["tracked_frames"].get<int>()));
+}
+
+}  // namespace

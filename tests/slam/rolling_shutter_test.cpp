@@ -1,0 +1,89 @@
+// End-to-end: SLAM on a rolling-shutter synthetic sequence, with and without compensating the
+// readout (PinholeCamera::readout_time).
+
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <vector>
+
+#include "mcslam/eval/metrics.hpp"
+#include "mcslam/slam/system.hpp"
+#include "mcslam/synth/sequence.hpp"
+
+namespace mcslam::slam {
+namespace {
+
+constexpr double kReadout = 0.03;
+
+struct RollingSequence {
+  std::vector<synth::RenderedFrame> frames;
+  Trajectory groundtruth;
+  PinholeCamera camera;
+};
+
+/// 120 frames at speed 3 (up to ~90 deg/s), Kinect-like depth noise, rows read over 30 ms.
+const RollingSequence& rolling_sequence() {
+  static const RollingSequence sequence = [] {
+    synth::SynthOptions o;
+    o.frames = 120;
+    o.speed = 3.0;
+    o.depth_noise = true;
+    o.readout_time = kReadout;
+    const synth::SyntheticSequence seq(o);
+    RollingSequence s;
+    for (int i = 0; i < seq.size(); ++i) s.frames.push_back(seq.frame(i));
+    s.groundtruth = seq.groundtruth();
+    s.camera = seq.camera();
+    return s;
+  }();
+  return sequence;
+}
+
+struct RunResult {
+  int tracked = 0;
+  eval::EvalReport report;
+};
+
+RunResult run(const RollingSequence& seq, double readout_time) {
+  PinholeCamera camera = seq.camera;
+  camera.readout_time = readout_time;
+  SystemOptions options;
+  options.sequential = true;
+  System system(camera, options);
+  RunResult r;
+  for (std::size_t i = 0; i < seq.frames.size(); ++i) {
+    const FrameResult fr =
+        system.process(seq.frames[i].rgb, seq.frames[i].depth, seq.groundtruth[i].timestamp);
+    r.tracked += fr.state == TrackingState::kOk ? 1 : 0;
+  }
+  system.finish();
+  r.report = eval::evaluate(seq.groundtruth, system.trajectory());
+  return r;
+}
+
+TEST(RollingShutter, CompensationLowersTheTrajectoryErrorOnFastRotation) {
+  const RollingSequence& seq = rolling_sequence();
+  ASSERT_EQ(seq.camera.readout_time, kReadout);
+  const RunResult plain = run(seq, 0.0);
+  const RunResult compensated = run(seq, kReadout);
+  const double ate_plain = plain.report.ate.translation.rmse;
+  const double ate_compensated = compensated.report.ate.translation.rmse;
+  std::printf(
+      "rolling shutter %.0f ms, speed 3: ATE %.2f mm without compensation (%d/%zu tracked), "
+      "%.2f mm with compensation (%d/%zu tracked)\n",
+      1000.0 * kReadout, 1000.0 * ate_plain, plain.tracked, seq.frames.size(),
+      1000.0 * ate_compensated, compensated.tracked, seq.frames.size());
+  // Measured: 107 mm without, 28 mm with compensation, 120/120 tracked both ways (the same path
+  // with a global shutter: 2.6 mm). The residual comes mostly from what the keypoint correction
+  // leaves out: the translation during the readout (up to 2 m/s here) and the lag of the tracked
+  // angular velocity (from the previous pair of frames).
+  EXPECT_GE(plain.tracked, 114);
+  EXPECT_GE(compensated.tracked, 114);
+  EXPECT_LT(ate_compensated, 0.5 * ate_plain) << "without:\n"
+                                              << eval::to_text(plain.report) << "with:\n"
+                                              << eval::to_text(compensated.report);
+  EXPECT_LT(ate_compensated, 0.045) << eval::to_text(compensated.report);
+}
+
+}  // namespace
+}  // namespace mcslam::slam
