@@ -37,6 +37,7 @@ for seq in "${seqs[@]}"; do
   for mode in sequential threaded; do
     for i in $(seq 1 "$runs"); do
       dir="$out/runs/$name/$mode-$i"
+      mkdir -p "$out/runs/$name"
       echo "bench: $name $mode run $i/$runs" >&2
       if ! "$exe" run "$seq" --output "$dir" --"$mode" -q 2> "$dir.err"; then
         echo "bench: run failed, see $dir.err" >&2
