@@ -5,22 +5,9 @@
 #include <unordered_set>
 
 #include "mcslam/optim/bundle_adjustment.hpp"
+#include "measurement.hpp"
 
 namespace mcslam::slam {
-namespace {
-
-optim::PointMeasurement measurement_of(const map::KeyFrame& kf, int index, double depth_weight) {
-  const auto& f = kf.features->points[static_cast<std::size_t>(index)];
-  optim::PointMeasurement m;
-  m.uv = f.keypoint.uv.cast<double>();
-  m.with_depth = f.has_depth() && depth_weight > 0.0;
-  m.u_right = f.u_right;
-  m.information = kf.features->pyramid->inv_sigma2[static_cast<std::size_t>(f.keypoint.level)];
-  m.right_information = m.information * depth_weight;
-  return m;
-}
-
-}  // namespace
 
 LocalMapper::LocalMapper(const PinholeCamera& camera, const MapperOptions& options,
                          double close_depth, map::Map& map)
@@ -328,7 +315,8 @@ void LocalMapper::bundle_adjust_keyframes(const std::vector<map::KeyFrameId>& lo
       optim::BundleAdjustmentProblem::Observation obs;
       obs.pose = add_pose(kf_id, local_set.count(kf_id) == 0);
       obs.point = static_cast<int>(k);
-      obs.measurement = measurement_of(*kf, index, options_.depth_weight);
+      obs.measurement = measurement_of(kf->features->points[static_cast<std::size_t>(index)],
+                                       *kf->features->pyramid, options_.depth_weight);
       problem.observations.push_back(obs);
       observation_ids.emplace_back(kf_id, point_ids[k]);
     }

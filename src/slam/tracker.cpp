@@ -10,6 +10,7 @@
 
 #include "mcslam/features/matching.hpp"
 #include "mcslam/optim/pose_optimizer.hpp"
+#include "measurement.hpp"
 
 namespace mcslam::slam {
 namespace {
@@ -59,17 +60,6 @@ class RotationHistogram {
  private:
   std::array<std::vector<int>, kRotationBins> bins_;
 };
-
-optim::PointMeasurement measurement_of(const features::PointFeature& f,
-                                       const features::ScalePyramid& pyramid, double depth_weight) {
-  optim::PointMeasurement m;
-  m.uv = f.keypoint.uv.cast<double>();
-  m.with_depth = f.has_depth() && depth_weight > 0.0;
-  m.u_right = f.u_right;
-  m.information = pyramid.inv_sigma2[static_cast<std::size_t>(f.keypoint.level)];
-  m.right_information = m.information * depth_weight;
-  return m;
-}
 
 }  // namespace
 
