@@ -83,7 +83,7 @@ TrackingOutcome Tracker::track(const Frame& frame, bool mapper_idle, std::size_t
   Stopwatch watch;
   if (state_ == TrackingState::kNotInitialized) {
     TrackingOutcome out = initialize(frame);
-    if (times) times->add("track", watch.elapsed_ms());
+    if (times) times->add("initialize", watch.elapsed_ms());
     return out;
   }
 
@@ -269,9 +269,8 @@ int Tracker::search_last_frame(const Frame& frame, const SE3& T_c_w, double radi
     if (source[j] < 0) ++count;
     best_distance[j] = best;
     source[j] = static_cast<int>(i);
+    // A landmark the mapper culls meanwhile is dropped by track_local_map (under the lock).
     matches[j].landmark = last_->landmarks[i];
-    if (matches[j].landmark != map::kNoId && map_.point(matches[j].landmark) == nullptr)
-      matches[j].landmark = map::kNoId;
     matches[j].p_w = *world[i];
     matches[j].active = true;
     matches[j].outlier = false;
@@ -602,7 +601,11 @@ bool Tracker::relocalise(const Frame& frame, std::vector<Match>& matches, SE3& T
 
 bool Tracker::need_keyframe(const Frame& frame, const std::vector<Match>& matches, int inliers,
                             bool mapper_idle, std::size_t mapper_queue) const {
-  const auto n_keyframes = static_cast<std::uint64_t>(map_.num_keyframes());
+  std::uint64_t n_keyframes = 0;
+  {
+    auto lock = map_.read_lock();
+    n_keyframes = static_cast<std::uint64_t>(map_.num_keyframes());
+  }
   if (frame.id < last_relocalisation_frame_ +
                      static_cast<std::uint64_t>(options_.max_frames_between_keyframes) &&
       last_relocalisation_frame_ > 0 &&
