@@ -3,23 +3,13 @@
 #include <gtest/gtest.h>
 
 #include "support/numeric_diff.hpp"
+#include "support/test_camera.hpp"
 
 namespace mcslam {
 namespace {
 
-PinholeCamera tum_like() {
-  PinholeCamera c;
-  c.fx = 517.3;
-  c.fy = 516.5;
-  c.cx = 318.6;
-  c.cy = 255.3;
-  c.width = 640;
-  c.height = 480;
-  return c;
-}
-
 TEST(PinholeCamera, ProjectUnprojectRoundTrip) {
-  const PinholeCamera cam = tum_like();
+  const PinholeCamera cam = test::make_camera(517.3, 516.5, 318.6, 255.3);
   const Eigen::Vector2d uv(100.25, 400.5);
   const Eigen::Vector3d p = cam.unproject(uv, 2.5);
   EXPECT_DOUBLE_EQ(p.z(), 2.5);
@@ -27,7 +17,7 @@ TEST(PinholeCamera, ProjectUnprojectRoundTrip) {
 }
 
 TEST(PinholeCamera, ProjectJacobianMatchesNumeric) {
-  const PinholeCamera cam = tum_like();
+  const PinholeCamera cam = test::make_camera(517.3, 516.5, 318.6, 255.3);
   const Eigen::Vector3d p(0.4, -0.3, 1.7);
   auto f = [&](const Eigen::VectorXd& x) -> Eigen::VectorXd { return cam.project(x.head<3>()); };
   const Eigen::MatrixXd J = test::numeric_jacobian(f, p);
@@ -35,29 +25,29 @@ TEST(PinholeCamera, ProjectJacobianMatchesNumeric) {
 }
 
 TEST(PinholeCamera, RightCoordinate) {
-  const PinholeCamera cam = tum_like();
+  const PinholeCamera cam = test::make_camera(517.3, 516.5, 318.6, 255.3);
   EXPECT_DOUBLE_EQ(cam.right_u(300.0, 2.0), 300.0 - cam.bf / 2.0);
 }
 
 TEST(PinholeCamera, CheckRejectsAbsurdValues) {
-  EXPECT_FALSE(tum_like().check().has_value());
-  PinholeCamera c = tum_like();
+  EXPECT_FALSE(test::make_camera(517.3, 516.5, 318.6, 255.3).check().has_value());
+  PinholeCamera c = test::make_camera(517.3, 516.5, 318.6, 255.3);
   c.fx = 0.0;
   ASSERT_TRUE(c.check().has_value());
   EXPECT_NE(c.check()->find("fx"), std::string::npos);
-  c = tum_like();
+  c = test::make_camera(517.3, 516.5, 318.6, 255.3);
   c.depth_factor = -5000.0;
   EXPECT_TRUE(c.check().has_value());
-  c = tum_like();
+  c = test::make_camera(517.3, 516.5, 318.6, 255.3);
   c.width = 0;
   EXPECT_TRUE(c.check().has_value());
-  c = tum_like();
+  c = test::make_camera(517.3, 516.5, 318.6, 255.3);
   c.cx = 1000.0;
   EXPECT_TRUE(c.check().has_value());
 }
 
 TEST(PinholeCamera, InImageBorder) {
-  const PinholeCamera cam = tum_like();
+  const PinholeCamera cam = test::make_camera(517.3, 516.5, 318.6, 255.3);
   EXPECT_TRUE(cam.in_image({0.0, 0.0}));
   EXPECT_FALSE(cam.in_image({640.0, 10.0}));
   EXPECT_FALSE(cam.in_image({5.0, 10.0}, 8.0));

@@ -4,21 +4,10 @@
 
 #include "mcslam/optim/bundle_adjustment.hpp"
 #include "mcslam/optim/pose_optimizer.hpp"
+#include "support/test_camera.hpp"
 
 namespace mcslam::optim {
 namespace {
-
-PinholeCamera test_camera() {
-  PinholeCamera c;
-  c.fx = 525.0;
-  c.fy = 525.0;
-  c.cx = 319.5;
-  c.cy = 239.5;
-  c.width = 640;
-  c.height = 480;
-  c.bf = 40.0;
-  return c;
-}
 
 // Random world points in front of a camera at T_c_w, measured with pixel noise.
 std::vector<PoseObservation> make_observations(const PinholeCamera& cam, const SE3& T_c_w, int n,
@@ -41,7 +30,7 @@ std::vector<PoseObservation> make_observations(const PinholeCamera& cam, const S
 
 TEST(PoseOptimizer, RecoversPoseAndRejectsOutliers) {
   std::mt19937 rng(42);
-  const PinholeCamera cam = test_camera();
+  const PinholeCamera cam = test::make_camera();
   Vector6d xi;
   xi << 0.3, -0.1, 0.2, 0.1, 0.2, -0.05;
   const SE3 truth = SE3::exp(xi);
@@ -77,7 +66,7 @@ TEST(PoseOptimizer, OptionsCheck) {
 
 TEST(BundleAdjustment, ReducesErrorOfPerturbedPosesAndPoints) {
   std::mt19937 rng(5);
-  const PinholeCamera cam = test_camera();
+  const PinholeCamera cam = test::make_camera();
   BundleAdjustmentProblem problem;
   std::vector<SE3> truth_poses;
   for (int k = 0; k < 5; ++k) {
@@ -129,7 +118,7 @@ TEST(BundleAdjustment, ReducesErrorOfPerturbedPosesAndPoints) {
 }
 
 TEST(BundleAdjustment, AbortFlagStopsEarly) {
-  const PinholeCamera cam = test_camera();
+  const PinholeCamera cam = test::make_camera();
   BundleAdjustmentProblem problem;
   problem.poses = {SE3(), SE3::exp((Vector6d() << 0.1, 0, 0, 0, 0, 0).finished())};
   problem.pose_fixed = {true, false};

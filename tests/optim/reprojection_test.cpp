@@ -6,21 +6,10 @@
 
 #include "mcslam/optim/se3_manifold.hpp"
 #include "support/numeric_diff.hpp"
+#include "support/test_camera.hpp"
 
 namespace mcslam::optim {
 namespace {
-
-PinholeCamera test_camera() {
-  PinholeCamera c;
-  c.fx = 520.0;
-  c.fy = 515.0;
-  c.cx = 320.0;
-  c.cy = 240.0;
-  c.width = 640;
-  c.height = 480;
-  c.bf = 40.0;
-  return c;
-}
 
 SE3 test_pose() {
   Vector6d xi;
@@ -30,7 +19,7 @@ SE3 test_pose() {
 
 template <int kDim>
 void check_jacobians(const PointMeasurement& m) {
-  const PinholeCamera cam = test_camera();
+  const PinholeCamera cam = test::make_camera(520.0, 515.0, 320.0, 240.0);
   ReprojectionError<kDim> cost(cam, m);
   double pose[7];
   pose_to_block(test_pose(), pose);
@@ -90,7 +79,7 @@ TEST(ReprojectionError, MonoJacobiansMatchNumeric) {
 }
 
 TEST(ReprojectionError, ZeroAtTruthAndWhitened) {
-  const PinholeCamera cam = test_camera();
+  const PinholeCamera cam = test::make_camera(520.0, 515.0, 320.0, 240.0);
   const SE3 T_c_w = test_pose();
   const Eigen::Vector3d p_c(0.2, 0.1, 1.5);
   const Eigen::Vector3d p_w = T_c_w.inverse() * p_c;
@@ -116,7 +105,7 @@ TEST(ReprojectionError, ZeroAtTruthAndWhitened) {
 }
 
 TEST(ReprojectionError, BehindCameraIsRejected) {
-  const PinholeCamera cam = test_camera();
+  const PinholeCamera cam = test::make_camera(520.0, 515.0, 320.0, 240.0);
   PointMeasurement m;
   ReprojectionError<2> cost(cam, m);
   double pose[7];
@@ -128,7 +117,7 @@ TEST(ReprojectionError, BehindCameraIsRejected) {
 }
 
 TEST(PoseOnlyReprojectionError, MatchesFullResidual) {
-  const PinholeCamera cam = test_camera();
+  const PinholeCamera cam = test::make_camera(520.0, 515.0, 320.0, 240.0);
   PointMeasurement m;
   m.uv = {310.0, 230.0};
   m.u_right = 295.0;
