@@ -198,7 +198,7 @@ int LocalMapper::fuse_into(map::KeyFrameId target_id, const std::vector<map::Poi
         best_idx = j;
       }
     }
-    if (best_idx < 0 || best > 50) continue;
+    if (best_idx < 0 || best > options_.fuse_descriptor_distance) continue;
     const map::PointId existing = target->landmarks[static_cast<std::size_t>(best_idx)];
     if (existing != map::kNoId) {
       const map::MapPoint* other = map_.point(existing);

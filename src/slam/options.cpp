@@ -7,9 +7,8 @@ std::optional<std::string> TrackerOptions::check() const {
   if (!(min_depth >= 0.0) || !(max_depth > min_depth))
     return "tracker.min_depth must be >= 0 and below tracker.max_depth";
   if (!(motion_search_radius > 0.0)) return "tracker.motion_search_radius must be positive";
-  if (max_descriptor_distance < 1 || max_descriptor_distance > 256 ||
-      strict_descriptor_distance < 1 || strict_descriptor_distance > max_descriptor_distance)
-    return "tracker descriptor distances must satisfy 1 <= strict <= max <= 256";
+  if (max_descriptor_distance < 1 || max_descriptor_distance > 256)
+    return "tracker.max_descriptor_distance must be in [1, 256]";
   if (!(depth_weight >= 0.0)) return "tracker.depth_weight must not be negative";
   if (!(local_map_search_radius > 0.0)) return "tracker.local_map_search_radius must be positive";
   if (!(local_map_ratio > 0.0 && local_map_ratio <= 1.0))
@@ -36,6 +35,8 @@ std::optional<std::string> MapperOptions::check() const {
   if (min_new_points < 0) return "mapper.min_new_points must not be negative";
   if (fuse_neighbours < 0) return "mapper.fuse_neighbours must not be negative";
   if (!(fuse_radius > 0.0)) return "mapper.fuse_radius must be positive";
+  if (fuse_descriptor_distance < 1 || fuse_descriptor_distance > 256)
+    return "mapper.fuse_descriptor_distance must be in [1, 256]";
   if (!(depth_weight >= 0.0)) return "mapper.depth_weight must not be negative";
   if (ba_keyframes < 1) return "mapper.ba_keyframes must be at least 1";
   if (min_covisibility_weight < 1) return "mapper.min_covisibility_weight must be at least 1";

@@ -660,7 +660,6 @@ KeyFrameRequest Tracker::make_keyframe(const Frame& frame, const std::vector<Mat
             [](const PointStatistics& a, const PointStatistics& b) { return a.point < b.point; });
   statistics_.clear();
   pending_keyframes_[request.id] = T_c_w;
-  last_keyframe_ = request.id;
   last_keyframe_frame_ = frame.id;
   reference_ = request.id;
   return request;

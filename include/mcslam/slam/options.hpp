@@ -18,9 +18,8 @@ struct TrackerOptions {
   /// Projection search radius (px at level 0, scaled by the keypoint's level) against the last
   /// frame; doubled once when too few matches are found.
   double motion_search_radius = 15.0;
-  /// Hamming thresholds: strict for projection matches, loose for local-map matches.
+  /// Hamming threshold for projection matches to the last frame and the local map.
   int max_descriptor_distance = 100;
-  int strict_descriptor_distance = 50;
   double local_map_ratio = 0.8;
   /// Local-map search window factor (times 2.5-4 px, times the level's scale). RGB-D: 3.
   double local_map_search_radius = 3.0;
@@ -61,6 +60,8 @@ struct MapperOptions {
   /// Keyframes whose neighbours' points are fused into a new keyframe.
   int fuse_neighbours = 10;
   double fuse_radius = 3.0;
+  /// Hamming threshold for fusing a landmark into a keyframe feature.
+  int fuse_descriptor_distance = 50;
   /// Weight of the depth residual in local bundle adjustment (see TrackerOptions).
   double depth_weight = 1.0;
   /// Local BA: covisible keyframes optimised together with the new one.

@@ -112,7 +112,6 @@ class Tracker {
   std::optional<SE3> velocity_;  // T_cur_last of the last tracked step
   double velocity_dt_ = 0.0;     // its duration in seconds
   map::KeyFrameId next_keyframe_id_ = 0;
-  map::KeyFrameId last_keyframe_ = map::kNoId;
   std::uint64_t last_keyframe_frame_ = 0;
   std::uint64_t last_relocalisation_frame_ = 0;
   // Local map of the current frame.
