@@ -33,7 +33,7 @@ class AbortCallback final : public ceres::IterationCallback {
 std::optional<std::string> BundleAdjustmentOptions::check() const {
   if (robust_iterations < 1) return "local_ba.robust_iterations must be at least 1";
   if (refine_iterations < 0) return "local_ba.refine_iterations must not be negative";
-  if (!(chi2_rgbd > 0.0) || !(chi2_mono > 0.0))
+  if (!(chi2_rgbd > 0.0) || !(chi2_mono > 0.0) || !(chi2_line > 0.0) || !(chi2_plane > 0.0))
     return "local_ba chi-square thresholds must be positive";
   if (num_threads < 1) return "local_ba.num_threads must be at least 1";
   return std::nullopt;
@@ -44,14 +44,21 @@ BundleAdjustmentResult bundle_adjust(const PinholeCamera& camera, BundleAdjustme
                                      const std::atomic<bool>* abort) {
   BundleAdjustmentResult result;
   result.inlier.assign(problem.observations.size(), true);
-  if (problem.observations.empty()) return result;
+  result.line_inlier.assign(problem.line_observations.size(), true);
+  result.plane_inlier.assign(problem.plane_observations.size(), true);
+  if (problem.observations.empty() && problem.line_observations.empty() &&
+      problem.plane_observations.empty())
+    return result;
 
   std::vector<double> poses(problem.poses.size() * kPoseSize);
   for (std::size_t i = 0; i < problem.poses.size(); ++i)
     pose_to_block(problem.poses[i], &poses[i * kPoseSize]);
   SE3Manifold manifold;
+  PlaneManifold plane_manifold;
   ceres::HuberLoss huber_rgbd(std::sqrt(options.chi2_rgbd));
   ceres::HuberLoss huber_mono(std::sqrt(options.chi2_mono));
+  ceres::HuberLoss huber_line(std::sqrt(options.chi2_line));
+  ceres::HuberLoss huber_plane(std::sqrt(options.chi2_plane));
   AbortCallback callback(abort);
 
   const auto chi2_of = [&](std::size_t k) {
@@ -62,6 +69,21 @@ BundleAdjustmentResult bundle_adjust(const PinholeCamera& camera, BundleAdjustme
   };
   const auto threshold_of = [&](std::size_t k) {
     return problem.observations[k].measurement.has_depth() ? options.chi2_rgbd : options.chi2_mono;
+  };
+  const auto line_chi2_of = [&](std::size_t k) {
+    const auto& obs = problem.line_observations[k];
+    const SE3 T_c_w = block_to_pose(&poses[static_cast<std::size_t>(obs.pose) * kPoseSize]);
+    const auto& line = problem.lines[static_cast<std::size_t>(obs.line)];
+    // line_chi2 is in pixels^2; whitened here like the residual.
+    return line_chi2(camera, obs.measurement, T_c_w * line.start, T_c_w * line.end) *
+           obs.measurement.information;
+  };
+  const auto plane_chi2_of = [&](std::size_t k) {
+    const auto& obs = problem.plane_observations[k];
+    const SE3 T_c_w = block_to_pose(&poses[static_cast<std::size_t>(obs.pose) * kPoseSize]);
+    const Eigen::Vector4d& plane = problem.planes[static_cast<std::size_t>(obs.plane)];
+    const Eigen::Vector3d n_c = T_c_w.rotation() * plane.head<3>();
+    return plane_chi2(obs.measurement, n_c, plane.w() - n_c.dot(T_c_w.translation()));
   };
 
   for (int stage = 0; stage < 2; ++stage) {
@@ -84,6 +106,32 @@ BundleAdjustmentResult bundle_adjust(const PinholeCamera& camera, BundleAdjustme
         ceres_problem.AddResidualBlock(new ReprojectionError<2>(camera, obs.measurement),
                                        robust ? &huber_mono : nullptr, pose, point);
       }
+    }
+    // A line's endpoints can slide along the line without changing residual (7). Levenberg-
+    // Marquardt damping keeps the normal equations regular in that direction, so nothing pins
+    // them; they may drift along the line, and the segment's extent is not BA's to keep.
+    for (std::size_t k = 0; k < problem.line_observations.size(); ++k) {
+      if (!result.line_inlier[k]) continue;
+      const auto& obs = problem.line_observations[k];
+      double* pose = &poses[static_cast<std::size_t>(obs.pose) * kPoseSize];
+      auto& line = problem.lines[static_cast<std::size_t>(obs.line)];
+      ceres_problem.AddResidualBlock(new LineReprojectionError(camera, obs.measurement),
+                                     robust ? &huber_line : nullptr, pose, line.start.data(),
+                                     line.end.data());
+    }
+    for (std::size_t k = 0; k < problem.plane_observations.size(); ++k) {
+      if (!result.plane_inlier[k]) continue;
+      const auto& obs = problem.plane_observations[k];
+      double* pose = &poses[static_cast<std::size_t>(obs.pose) * kPoseSize];
+      double* plane = problem.planes[static_cast<std::size_t>(obs.plane)].data();
+      ceres_problem.AddResidualBlock(new PlaneError(obs.measurement),
+                                     robust ? &huber_plane : nullptr, pose, plane);
+    }
+    for (Eigen::Vector4d& plane : problem.planes) {
+      if (!ceres_problem.HasParameterBlock(plane.data())) continue;
+      // The manifold keeps |n| = 1 only if it starts there.
+      plane.head<3>().normalize();
+      ceres_problem.SetManifold(plane.data(), &plane_manifold);
     }
     for (std::size_t i = 0; i < problem.poses.size(); ++i) {
       double* pose = &poses[i * kPoseSize];
@@ -109,6 +157,10 @@ BundleAdjustmentResult bundle_adjust(const PinholeCamera& camera, BundleAdjustme
     // Outliers: large error or behind the camera. They stay out of the refinement stage.
     for (std::size_t k = 0; k < problem.observations.size(); ++k)
       result.inlier[k] = chi2_of(k) <= threshold_of(k);
+    for (std::size_t k = 0; k < problem.line_observations.size(); ++k)
+      result.line_inlier[k] = line_chi2_of(k) <= options.chi2_line;
+    for (std::size_t k = 0; k < problem.plane_observations.size(); ++k)
+      result.plane_inlier[k] = plane_chi2_of(k) <= options.chi2_plane;
   }
   for (std::size_t i = 0; i < problem.poses.size(); ++i)
     problem.poses[i] = block_to_pose(&poses[i * kPoseSize]);

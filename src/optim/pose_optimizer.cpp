@@ -15,24 +15,31 @@ std::optional<std::string> PoseOptimizerOptions::check() const {
   if (rounds < 1) return "pose_optimizer.rounds must be at least 1";
   if (iterations_per_round < 1) return "pose_optimizer.iterations_per_round must be at least 1";
   if (robust_rounds < 0) return "pose_optimizer.robust_rounds must not be negative";
-  if (!(chi2_rgbd > 0.0) || !(chi2_mono > 0.0))
+  if (!(chi2_rgbd > 0.0) || !(chi2_mono > 0.0) || !(chi2_line > 0.0) || !(chi2_plane > 0.0))
     return "pose_optimizer chi-square thresholds must be positive";
   return std::nullopt;
 }
 
 PoseOptimizationResult optimize_pose(const PinholeCamera& camera, const SE3& initial_T_c_w,
-                                     const std::vector<PoseObservation>& observations,
+                                     const PoseProblem& problem,
                                      const PoseOptimizerOptions& options) {
+  const auto& points = problem.points;
+  const auto& lines = problem.lines;
+  const auto& planes = problem.planes;
   PoseOptimizationResult result;
   result.T_c_w = initial_T_c_w;
-  result.inlier.assign(observations.size(), true);
-  if (observations.empty()) return result;
+  result.inlier.assign(points.size(), true);
+  result.line_inlier.assign(lines.size(), true);
+  result.plane_inlier.assign(planes.size(), true);
+  if (points.empty() && lines.empty() && planes.empty()) return result;
 
   double pose[kPoseSize];
   pose_to_block(initial_T_c_w, pose);
   SE3Manifold manifold;
   ceres::HuberLoss huber_rgbd(std::sqrt(options.chi2_rgbd));
   ceres::HuberLoss huber_mono(std::sqrt(options.chi2_mono));
+  ceres::HuberLoss huber_line(std::sqrt(options.chi2_line));
+  ceres::HuberLoss huber_plane(std::sqrt(options.chi2_plane));
 
   ceres::Solver::Options solver_options;
   solver_options.linear_solver_type = ceres::DENSE_QR;
@@ -46,38 +53,84 @@ PoseOptimizationResult optimize_pose(const PinholeCamera& camera, const SE3& ini
     ceres::Problem::Options problem_options;
     problem_options.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
     problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
-    ceres::Problem problem(problem_options);
-    problem.AddParameterBlock(pose, kPoseSize, &manifold);
+    ceres::Problem ceres_problem(problem_options);
+    ceres_problem.AddParameterBlock(pose, kPoseSize, &manifold);
     int active = 0;
-    for (std::size_t i = 0; i < observations.size(); ++i) {
+    for (std::size_t i = 0; i < points.size(); ++i) {
       if (!result.inlier[i]) continue;
-      const auto& obs = observations[i];
+      const auto& obs = points[i];
       if (obs.measurement.has_depth()) {
-        problem.AddResidualBlock(new PoseOnlyReprojectionError<3>(camera, obs.measurement, obs.p_w),
-                                 robust ? &huber_rgbd : nullptr, pose);
+        ceres_problem.AddResidualBlock(
+            new PoseOnlyReprojectionError<3>(camera, obs.measurement, obs.p_w),
+            robust ? &huber_rgbd : nullptr, pose);
       } else {
-        problem.AddResidualBlock(new PoseOnlyReprojectionError<2>(camera, obs.measurement, obs.p_w),
-                                 robust ? &huber_mono : nullptr, pose);
+        ceres_problem.AddResidualBlock(
+            new PoseOnlyReprojectionError<2>(camera, obs.measurement, obs.p_w),
+            robust ? &huber_mono : nullptr, pose);
       }
       ++active;
     }
+    for (std::size_t i = 0; i < lines.size(); ++i) {
+      if (!result.line_inlier[i]) continue;
+      const auto& obs = lines[i];
+      ceres_problem.AddResidualBlock(
+          new PoseOnlyLineError(camera, obs.measurement, obs.start_w, obs.end_w),
+          robust ? &huber_line : nullptr, pose);
+      ++active;
+    }
+    for (std::size_t i = 0; i < planes.size(); ++i) {
+      if (!result.plane_inlier[i]) continue;
+      const auto& obs = planes[i];
+      ceres_problem.AddResidualBlock(new PoseOnlyPlaneError(obs.measurement, obs.plane_w),
+                                     robust ? &huber_plane : nullptr, pose);
+      ++active;
+    }
+    // Every kind gives at least two independent equations, so three observations of any mix are
+    // the least that can fix the six degrees of freedom.
     if (active < 3) break;
     ceres::Solver::Summary summary;
-    ceres::Solve(solver_options, &problem, &summary);
+    ceres::Solve(solver_options, &ceres_problem, &summary);
 
     // Reclassify every observation, including earlier outliers, at the new pose.
     const SE3 T_c_w = block_to_pose(pose);
     result.num_inliers = 0;
-    for (std::size_t i = 0; i < observations.size(); ++i) {
-      const auto& m = observations[i].measurement;
-      const double chi2 = reprojection_chi2(camera, m, T_c_w * observations[i].p_w);
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      const auto& m = points[i].measurement;
+      const double chi2 = reprojection_chi2(camera, m, T_c_w * points[i].p_w);
       result.inlier[i] = chi2 <= (m.has_depth() ? options.chi2_rgbd : options.chi2_mono);
       result.num_inliers += result.inlier[i] ? 1 : 0;
     }
-    if (result.num_inliers < 10) break;
+    result.num_line_inliers = 0;
+    for (std::size_t i = 0; i < lines.size(); ++i) {
+      const auto& obs = lines[i];
+      // line_chi2 is in pixels^2; the test needs it whitened like the residual.
+      const double chi2 =
+          line_chi2(camera, obs.measurement, T_c_w * obs.start_w, T_c_w * obs.end_w) *
+          obs.measurement.information;
+      result.line_inlier[i] = chi2 <= options.chi2_line;
+      result.num_line_inliers += result.line_inlier[i] ? 1 : 0;
+    }
+    result.num_plane_inliers = 0;
+    for (std::size_t i = 0; i < planes.size(); ++i) {
+      const auto& obs = planes[i];
+      const Eigen::Vector3d n_c = T_c_w.rotation() * obs.plane_w.head<3>();
+      const double d_c = obs.plane_w.w() - n_c.dot(T_c_w.translation());
+      result.plane_inlier[i] = plane_chi2(obs.measurement, n_c, d_c) <= options.chi2_plane;
+      result.num_plane_inliers += result.plane_inlier[i] ? 1 : 0;
+    }
+    // Too few inliers of all kinds together to go on rejecting outliers.
+    if (result.num_inliers + result.num_line_inliers + result.num_plane_inliers < 10) break;
   }
   result.T_c_w = block_to_pose(pose);
   return result;
+}
+
+PoseOptimizationResult optimize_pose(const PinholeCamera& camera, const SE3& initial_T_c_w,
+                                     const std::vector<PoseObservation>& observations,
+                                     const PoseOptimizerOptions& options) {
+  PoseProblem problem;
+  problem.points = observations;
+  return optimize_pose(camera, initial_T_c_w, problem, options);
 }
 
 }  // namespace mcslam::optim

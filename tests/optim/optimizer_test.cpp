@@ -1,6 +1,8 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <random>
+#include <utility>
 
 #include "mcslam/optim/bundle_adjustment.hpp"
 #include "mcslam/optim/pose_optimizer.hpp"
@@ -26,6 +28,66 @@ std::vector<PoseObservation> make_observations(const PinholeCamera& cam, const S
     out.push_back(obs);
   }
   return out;
+}
+
+// The normalised image line through two pixels.
+Eigen::Vector3d line_through(const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+  const Eigen::Vector3d l = a.homogeneous().cross(b.homogeneous());
+  return l / l.head<2>().norm();
+}
+
+// Random 3D segments in front of a camera at T_c_w, observed as image lines through their noisy
+// projected endpoints.
+std::vector<PoseLineObservation> make_line_observations(const PinholeCamera& cam, const SE3& T_c_w,
+                                                        int n, double noise_px, std::mt19937& rng) {
+  std::uniform_real_distribution<double> u(20.0, 620.0), v(20.0, 460.0), z(0.8, 4.0);
+  std::normal_distribution<double> noise(0.0, noise_px);
+  std::vector<PoseLineObservation> out;
+  while (static_cast<int>(out.size()) < n) {
+    const Eigen::Vector3d s_c = cam.unproject({u(rng), v(rng)}, z(rng));
+    const Eigen::Vector3d e_c = cam.unproject({u(rng), v(rng)}, z(rng));
+    if ((cam.project(s_c) - cam.project(e_c)).norm() < 80.0) continue;  // too short to be seen
+    PoseLineObservation obs;
+    obs.start_w = T_c_w.inverse() * s_c;
+    obs.end_w = T_c_w.inverse() * e_c;
+    obs.measurement.coefficients =
+        line_through(cam.project(s_c) + Eigen::Vector2d(noise(rng), noise(rng)),
+                     cam.project(e_c) + Eigen::Vector2d(noise(rng), noise(rng)));
+    out.push_back(obs);
+  }
+  return out;
+}
+
+// A world plane [n, d] as a camera at T_c_w measures it (n_c = R n_w, d_c = d_w - n_c . t).
+PlaneMeasurement measure_plane(const SE3& T_c_w, const Eigen::Vector4d& plane_w) {
+  PlaneMeasurement m;
+  m.normal = T_c_w.rotation() * plane_w.head<3>();
+  m.d = plane_w.w() - m.normal.dot(T_c_w.translation());
+  m.angle_information = 1.0 / (0.01 * 0.01);     // 0.01 rad
+  m.distance_information = 1.0 / (0.02 * 0.02);  // 2 cm
+  return m;
+}
+
+Eigen::Vector4d make_plane(const Eigen::Vector3d& n, double d) {
+  const Eigen::Vector3d u = n.normalized();
+  return {u.x(), u.y(), u.z(), d};
+}
+
+// Rotation (rad) and translation (m) error of an estimate.
+std::pair<double, double> pose_error(const SE3& estimate, const SE3& truth) {
+  const Vector6d e = (estimate * truth.inverse()).log();
+  return {e.tail<3>().norm(), e.head<3>().norm()};
+}
+
+const SE3& test_truth() {
+  static const SE3 truth = SE3::exp((Vector6d() << 0.3, -0.1, 0.2, 0.1, 0.2, -0.05).finished());
+  return truth;
+}
+
+const SE3& test_initial() {
+  static const SE3 initial =
+      SE3::exp((Vector6d() << 0.05, -0.04, 0.03, 0.03, -0.02, 0.02).finished()) * test_truth();
+  return initial;
 }
 
 TEST(PoseOptimizer, RecoversPoseAndRejectsOutliers) {
@@ -115,6 +177,232 @@ TEST(BundleAdjustment, ReducesErrorOfPerturbedPosesAndPoints) {
     EXPECT_LT(e.tail<3>().norm(), 0.002) << "pose " << k;
   }
   EXPECT_EQ((problem.poses[0].log() - truth_poses[0].log()).norm(), 0.0);  // fixed stays fixed
+}
+
+TEST(PoseOptimizer, OptionsCheckCoversLineAndPlaneThresholds) {
+  PoseOptimizerOptions o;
+  o.chi2_line = 0.0;
+  EXPECT_TRUE(o.check().has_value());
+  o = PoseOptimizerOptions{};
+  o.chi2_plane = -1.0;
+  EXPECT_TRUE(o.check().has_value());
+  BundleAdjustmentOptions b;
+  EXPECT_FALSE(b.check().has_value());
+  b.chi2_line = 0.0;
+  EXPECT_TRUE(b.check().has_value());
+}
+
+TEST(PoseOptimizer, RecoversPoseFromLinesOnly) {
+  std::mt19937 rng(101);
+  const PinholeCamera cam = test::make_camera();
+  PoseProblem problem;
+  problem.lines = make_line_observations(cam, test_truth(), 40, 0.5, rng);
+  // A map line with an endpoint behind the camera must neither stop the solver nor pass the test.
+  PoseLineObservation behind;
+  behind.start_w = test_truth().inverse() * Eigen::Vector3d(0.2, 0.1, -0.5);
+  behind.end_w = test_truth().inverse() * Eigen::Vector3d(0.3, 0.0, 2.0);
+  behind.measurement.coefficients = line_through({100.0, 200.0}, {400.0, 260.0});
+  problem.lines.push_back(behind);
+  const auto result = optimize_pose(cam, test_initial(), problem, PoseOptimizerOptions{});
+  const auto [rot, trans] = pose_error(result.T_c_w, test_truth());
+  EXPECT_LT(rot, 0.003);
+  EXPECT_LT(trans, 0.005);
+  EXPECT_EQ(result.num_inliers, 0);
+  EXPECT_GE(result.num_line_inliers, 36);
+  EXPECT_TRUE(result.inlier.empty());
+  ASSERT_EQ(result.line_inlier.size(), 41u);
+  EXPECT_FALSE(result.line_inlier.back());
+}
+
+TEST(PoseOptimizer, RecoversPoseFromThreePlanesOnly) {
+  const PinholeCamera cam = test::make_camera();
+  PoseProblem problem;
+  // Floor, side wall and back wall: three independent normals fix rotation and translation.
+  for (const Eigen::Vector4d& plane :
+       {make_plane({0.0, -1.0, 0.0}, 1.2), make_plane({1.0, 0.0, 0.2}, 2.0),
+        make_plane({0.1, 0.0, -1.0}, 5.0)}) {
+    PosePlaneObservation obs;
+    obs.plane_w = plane;
+    obs.measurement = measure_plane(test_truth(), plane);
+    problem.planes.push_back(obs);
+  }
+  const auto result = optimize_pose(cam, test_initial(), problem, PoseOptimizerOptions{});
+  const auto [rot, trans] = pose_error(result.T_c_w, test_truth());
+  EXPECT_LT(rot, 1e-6);
+  EXPECT_LT(trans, 1e-6);
+  EXPECT_EQ(result.num_plane_inliers, 3);
+}
+
+TEST(PoseOptimizer, PointsLinesPlanesWithOutliersOfEachKind) {
+  std::mt19937 rng(202);
+  const PinholeCamera cam = test::make_camera();
+  const SE3& truth = test_truth();
+  PoseProblem problem;
+  problem.points = make_observations(cam, truth, 60, 0.5, rng);
+  problem.lines = make_line_observations(cam, truth, 30, 0.5, rng);
+  std::uniform_real_distribution<double> big(30.0, 60.0);
+  for (std::size_t i = 0; i < problem.points.size(); i += 6) {
+    problem.points[i].measurement.uv.y() += big(rng);
+    problem.points[i].measurement.u_right += big(rng);
+  }
+  for (std::size_t i = 0; i < problem.lines.size(); i += 5)
+    problem.lines[i].measurement.coefficients.z() += big(rng);  // the line moved 30-60 px
+  const std::vector<Eigen::Vector4d> planes = {
+      make_plane({0.0, -1.0, 0.0}, 1.2), make_plane({1.0, 0.0, 0.2}, 2.0),
+      make_plane({0.1, 0.0, -1.0}, 5.0), make_plane({-1.0, 0.1, 0.1}, 2.5),
+      make_plane({0.0, 1.0, 0.1}, 1.5),  make_plane({0.7, 0.0, -0.7}, 4.0)};
+  for (const auto& plane : planes) {
+    PosePlaneObservation obs;
+    obs.plane_w = plane;
+    obs.measurement = measure_plane(truth, plane);
+    problem.planes.push_back(obs);
+  }
+  // Outlier planes: one 0.3 m off, one whose normal is 15 degrees off.
+  problem.planes[1].measurement.d += 0.3;
+  problem.planes[4].measurement.normal =
+      Eigen::AngleAxisd(0.26, Eigen::Vector3d::UnitX()) * problem.planes[4].measurement.normal;
+
+  const auto result = optimize_pose(cam, test_initial(), problem, PoseOptimizerOptions{});
+  const auto [rot, trans] = pose_error(result.T_c_w, truth);
+  EXPECT_LT(rot, 0.003);
+  EXPECT_LT(trans, 0.005);
+  int lost = 0;
+  for (std::size_t i = 0; i < problem.points.size(); ++i) {
+    if (i % 6 == 0) {
+      EXPECT_FALSE(result.inlier[i]) << "point " << i;
+    }
+    if (i % 6 != 0 && !result.inlier[i]) ++lost;
+  }
+  EXPECT_LT(lost, 6);
+  lost = 0;
+  for (std::size_t i = 0; i < problem.lines.size(); ++i) {
+    if (i % 5 == 0) {
+      EXPECT_FALSE(result.line_inlier[i]) << "line " << i;
+    }
+    if (i % 5 != 0 && !result.line_inlier[i]) ++lost;
+  }
+  EXPECT_LT(lost, 4);
+  for (std::size_t i = 0; i < planes.size(); ++i)
+    EXPECT_EQ(result.plane_inlier[i], i != 1 && i != 4) << "plane " << i;
+  EXPECT_EQ(result.num_plane_inliers, 4);
+}
+
+TEST(PoseOptimizer, PointsOnlyOverloadMatchesPoseProblem) {
+  std::mt19937 rng(303);
+  const PinholeCamera cam = test::make_camera();
+  PoseProblem problem;
+  problem.points = make_observations(cam, test_truth(), 50, 0.5, rng);
+  const auto a = optimize_pose(cam, test_initial(), problem.points, PoseOptimizerOptions{});
+  const auto b = optimize_pose(cam, test_initial(), problem, PoseOptimizerOptions{});
+  EXPECT_EQ((a.T_c_w.log() - b.T_c_w.log()).norm(), 0.0);
+  EXPECT_EQ(a.inlier, b.inlier);
+  EXPECT_EQ(a.num_inliers, b.num_inliers);
+  EXPECT_TRUE(a.line_inlier.empty());
+  EXPECT_TRUE(a.plane_inlier.empty());
+}
+
+TEST(BundleAdjustment, PointsLinesAndPlanesConvergeToTruth) {
+  std::mt19937 rng(404);
+  const PinholeCamera cam = test::make_camera();
+  const std::vector<SE3> truth_poses = {
+      SE3(), SE3::exp((Vector6d() << 0.25, 0.05, 0.05, 0.02, -0.06, 0.03).finished())};
+  std::uniform_real_distribution<double> x(-1.2, 1.2), y(-0.8, 0.8), z(2.0, 4.0);
+  std::normal_distribution<double> pos(0.0, 0.02), ang(0.0, 0.01);
+  const auto perturbed = [&](const Eigen::Vector3d& p) {
+    return Eigen::Vector3d(p + Eigen::Vector3d(pos(rng), pos(rng), pos(rng)));
+  };
+
+  BundleAdjustmentProblem problem;
+  problem.poses = {
+      truth_poses[0],
+      SE3::exp((Vector6d() << 0.03, -0.02, 0.02, 0.015, -0.01, 0.01).finished()) * truth_poses[1]};
+  problem.pose_fixed = {true, false};
+  std::vector<Eigen::Vector3d> truth_points;
+  for (int i = 0; i < 30; ++i) {
+    truth_points.emplace_back(x(rng), y(rng), z(rng));
+    problem.points.push_back(perturbed(truth_points.back()));
+  }
+  std::vector<BundleAdjustmentProblem::Line> truth_lines;
+  for (int i = 0; i < 12; ++i) {
+    truth_lines.push_back({{x(rng), y(rng), z(rng)}, {x(rng), y(rng), z(rng)}});
+    problem.lines.push_back(
+        {perturbed(truth_lines.back().start), perturbed(truth_lines.back().end)});
+  }
+  const std::vector<Eigen::Vector4d> truth_planes = {make_plane({0.0, -1.0, 0.1}, 1.0),
+                                                     make_plane({1.0, 0.0, 0.3}, 1.8),
+                                                     make_plane({0.1, 0.1, -1.0}, 4.5)};
+  for (const auto& plane : truth_planes) {
+    const Eigen::Vector3d n =
+        (Eigen::AngleAxisd(ang(rng), Eigen::Vector3d::UnitX()) *
+         Eigen::AngleAxisd(ang(rng), Eigen::Vector3d::UnitY()) * plane.head<3>());
+    problem.planes.emplace_back(n.x(), n.y(), n.z(), plane.w() + pos(rng));
+  }
+  const std::vector<BundleAdjustmentProblem::Line> initial_lines = problem.lines;
+
+  for (int k = 0; k < 2; ++k) {
+    const SE3& T = truth_poses[static_cast<std::size_t>(k)];
+    for (int i = 0; i < 30; ++i) {
+      const Eigen::Vector3d p_c = T * truth_points[static_cast<std::size_t>(i)];
+      BundleAdjustmentProblem::Observation obs;
+      obs.pose = k;
+      obs.point = i;
+      obs.measurement.uv = cam.project(p_c);
+      obs.measurement.u_right = cam.right_u(obs.measurement.uv.x(), p_c.z());
+      obs.measurement.with_depth = true;
+      problem.observations.push_back(obs);
+    }
+    for (int i = 0; i < 12; ++i) {
+      const auto& line = truth_lines[static_cast<std::size_t>(i)];
+      BundleAdjustmentProblem::LineObservation obs;
+      obs.pose = k;
+      obs.line = i;
+      obs.measurement.coefficients =
+          line_through(cam.project(T * line.start), cam.project(T * line.end));
+      problem.line_observations.push_back(obs);
+    }
+    for (int i = 0; i < 3; ++i) {
+      BundleAdjustmentProblem::PlaneObservation obs;
+      obs.pose = k;
+      obs.plane = i;
+      obs.measurement = measure_plane(T, truth_planes[static_cast<std::size_t>(i)]);
+      problem.plane_observations.push_back(obs);
+    }
+  }
+
+  BundleAdjustmentOptions options;
+  options.robust_iterations = 10;
+  options.refine_iterations = 20;
+  const auto result = bundle_adjust(cam, problem, options);
+  EXPECT_FALSE(result.aborted);
+  EXPECT_LT(result.final_cost, 1e-8 * result.initial_cost);
+  for (bool inlier : result.inlier) EXPECT_TRUE(inlier);
+  for (bool inlier : result.line_inlier) EXPECT_TRUE(inlier);
+  for (bool inlier : result.plane_inlier) EXPECT_TRUE(inlier);
+  EXPECT_EQ((problem.poses[0].log() - truth_poses[0].log()).norm(), 0.0);  // fixed stays fixed
+  const auto [rot, trans] = pose_error(problem.poses[1], truth_poses[1]);
+  EXPECT_LT(rot, 1e-5);
+  EXPECT_LT(trans, 1e-5);
+  for (std::size_t i = 0; i < truth_points.size(); ++i)
+    EXPECT_LT((problem.points[i] - truth_points[i]).norm(), 1e-4) << "point " << i;
+  for (std::size_t i = 0; i < truth_planes.size(); ++i) {
+    const Eigen::Vector4d& plane = problem.planes[i];
+    EXPECT_NEAR(plane.head<3>().norm(), 1.0, 1e-12);
+    EXPECT_LT(std::acos(std::min(1.0, plane.head<3>().dot(truth_planes[i].head<3>()))), 1e-5);
+    EXPECT_NEAR(plane.w(), truth_planes[i].w(), 1e-5) << "plane " << i;
+  }
+  // Endpoints return to the true line. Along it they are free: the damped steps can move them
+  // there by several times their cross-line correction (up to ~0.3 m here, for one line), which
+  // is accepted as long as they do not run away.
+  for (std::size_t i = 0; i < truth_lines.size(); ++i) {
+    const Eigen::Vector3d a = truth_lines[i].start;
+    const Eigen::Vector3d dir = (truth_lines[i].end - a).normalized();
+    for (const auto& [p, p0] : {std::pair{problem.lines[i].start, initial_lines[i].start},
+                                std::pair{problem.lines[i].end, initial_lines[i].end}}) {
+      ASSERT_TRUE(p.allFinite());
+      EXPECT_LT((p - a).cross(dir).norm(), 1e-4) << "line " << i;
+      EXPECT_LT((p - p0).norm(), 0.5) << "line " << i;
+    }
+  }
 }
 
 TEST(BundleAdjustment, AbortFlagStopsEarly) {

@@ -9,6 +9,8 @@
 
 #include "mcslam/core/camera.hpp"
 #include "mcslam/core/se3.hpp"
+#include "mcslam/optim/line_residual.hpp"
+#include "mcslam/optim/plane_residual.hpp"
 #include "mcslam/optim/reprojection.hpp"
 
 namespace mcslam::optim {
@@ -19,10 +21,29 @@ struct BundleAdjustmentProblem {
     int point = 0;  // index into points
     PointMeasurement measurement;
   };
+  struct LineObservation {
+    int pose = 0;
+    int line = 0;  // index into lines
+    LineMeasurement measurement;
+  };
+  struct PlaneObservation {
+    int pose = 0;
+    int plane = 0;  // index into planes
+    PlaneMeasurement measurement;
+  };
+  /// A 3D line by its two endpoints (world).
+  struct Line {
+    Eigen::Vector3d start = Eigen::Vector3d::Zero();
+    Eigen::Vector3d end = Eigen::Vector3d::Zero();
+  };
   std::vector<SE3> poses;  // T_c_w
   std::vector<bool> pose_fixed;
   std::vector<Eigen::Vector3d> points;
   std::vector<Observation> observations;
+  std::vector<Line> lines;
+  std::vector<LineObservation> line_observations;
+  std::vector<Eigen::Vector4d> planes;  // [n, d] world, |n| = 1
+  std::vector<PlaneObservation> plane_observations;
 };
 
 struct BundleAdjustmentOptions {
@@ -31,19 +52,24 @@ struct BundleAdjustmentOptions {
   int refine_iterations = 10;
   double chi2_rgbd = 7.815;
   double chi2_mono = 5.991;
+  double chi2_line = 5.991;
+  double chi2_plane = 7.815;
   int num_threads = 1;
   std::optional<std::string> check() const;
 };
 
 struct BundleAdjustmentResult {
-  std::vector<bool> inlier;  // per observation, after optimisation
+  std::vector<bool> inlier;  // per point observation, after optimisation
+  std::vector<bool> line_inlier;
+  std::vector<bool> plane_inlier;
   bool aborted = false;
   int iterations = 0;
   double initial_cost = 0.0;
   double final_cost = 0.0;
 };
 
-/// Optimises poses (except fixed ones) and points in place. `abort`, when given and set by
+/// Optimises poses (except fixed ones), points, lines and planes in place (residuals (6)-(8),
+/// Huber loss, then outliers dropped and refined without it). `abort`, when given and set by
 /// another thread, stops the solver at the end of its current iteration.
 BundleAdjustmentResult bundle_adjust(const PinholeCamera& camera, BundleAdjustmentProblem& problem,
                                      const BundleAdjustmentOptions& options,

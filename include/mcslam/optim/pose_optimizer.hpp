@@ -8,6 +8,8 @@
 
 #include "mcslam/core/camera.hpp"
 #include "mcslam/core/se3.hpp"
+#include "mcslam/optim/line_residual.hpp"
+#include "mcslam/optim/plane_residual.hpp"
 #include "mcslam/optim/reprojection.hpp"
 
 namespace mcslam::optim {
@@ -20,6 +22,9 @@ struct PoseOptimizerOptions {
   /// Chi-square thresholds at 95%: 3 dof (u, v, u_r) and 2 dof (u, v).
   double chi2_rgbd = 7.815;
   double chi2_mono = 5.991;
+  /// Lines: 2 dof (the two endpoint distances); planes: 3 dof.
+  double chi2_line = 5.991;
+  double chi2_plane = 7.815;
   std::optional<std::string> check() const;
 };
 
@@ -28,12 +33,41 @@ struct PoseObservation {
   PointMeasurement measurement;
 };
 
-struct PoseOptimizationResult {
-  SE3 T_c_w;
-  std::vector<bool> inlier;  // per observation
-  int num_inliers = 0;
+struct PoseLineObservation {
+  Eigen::Vector3d start_w = Eigen::Vector3d::Zero();
+  Eigen::Vector3d end_w = Eigen::Vector3d::Zero();
+  LineMeasurement measurement;
 };
 
+struct PosePlaneObservation {
+  Eigen::Vector4d plane_w = Eigen::Vector4d(0.0, 0.0, 1.0, 1.0);  // [n, d], |n| = 1
+  PlaneMeasurement measurement;
+};
+
+/// Everything one frame observes of fixed landmarks.
+struct PoseProblem {
+  std::vector<PoseObservation> points;
+  std::vector<PoseLineObservation> lines;
+  std::vector<PosePlaneObservation> planes;
+};
+
+struct PoseOptimizationResult {
+  SE3 T_c_w;
+  std::vector<bool> inlier;  // per point observation
+  std::vector<bool> line_inlier;
+  std::vector<bool> plane_inlier;
+  int num_inliers = 0;  // points
+  int num_line_inliers = 0;
+  int num_plane_inliers = 0;
+};
+
+/// Optimises the pose against points, lines and planes together (residuals (6), (7), (8)), each
+/// under a Huber loss at its own chi-square threshold.
+PoseOptimizationResult optimize_pose(const PinholeCamera& camera, const SE3& initial_T_c_w,
+                                     const PoseProblem& problem,
+                                     const PoseOptimizerOptions& options);
+
+/// Points only.
 PoseOptimizationResult optimize_pose(const PinholeCamera& camera, const SE3& initial_T_c_w,
                                      const std::vector<PoseObservation>& observations,
                                      const PoseOptimizerOptions& options);

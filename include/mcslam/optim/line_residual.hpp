@@ -1,0 +1,50 @@
+#pragma once
+// Residual (7) of the paper: the signed pixel distances of a 3D line's two projected endpoints to
+// the observed 2D line l = (a, b, c), a^2 + b^2 = 1 (features::LineFeature::coefficients()):
+//   e = [ l . pi(R P_s + t) ; l . pi(R P_e + t) ],  pi(p) = (fx x / z + cx, fy y / z + cy, 1).
+// Whitened by sqrt(information). Analytic Jacobians with respect to the pose block (7, see
+// se3_manifold.hpp) and the two endpoint blocks.
+
+#include <ceres/sized_cost_function.h>
+
+#include "mcslam/core/camera.hpp"
+
+namespace mcslam::optim {
+
+struct LineMeasurement {
+  Eigen::Vector3d coefficients = Eigen::Vector3d::UnitX();  // normalised: a^2 + b^2 = 1
+  double information = 1.0;                                 // 1 / sigma^2, sigma in pixels
+};
+
+/// Parameters: pose (7), start point (3, world), end point (3, world).
+class LineReprojectionError final : public ceres::SizedCostFunction<2, 7, 3, 3> {
+ public:
+  LineReprojectionError(const PinholeCamera& camera, const LineMeasurement& m);
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override;
+
+ private:
+  double fx_, fy_, cx_, cy_;
+  Eigen::Vector3d l_;
+  double sqrt_information_;
+};
+
+/// The same residual with the endpoints held fixed (pose-only optimisation).
+class PoseOnlyLineError final : public ceres::SizedCostFunction<2, 7> {
+ public:
+  PoseOnlyLineError(const PinholeCamera& camera, const LineMeasurement& m,
+                    const Eigen::Vector3d& start_w, const Eigen::Vector3d& end_w);
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override;
+
+ private:
+  LineReprojectionError full_;
+  Eigen::Vector3d start_w_, end_w_;
+};
+
+/// Unwhitened squared error (pixels^2) of camera-frame endpoints, for chi-square tests; infinite
+/// when an endpoint is behind the camera.
+double line_chi2(const PinholeCamera& camera, const LineMeasurement& m,
+                 const Eigen::Vector3d& start_c, const Eigen::Vector3d& end_c);
+
+}  // namespace mcslam::optim

@@ -1,0 +1,101 @@
+#include "mcslam/optim/line_residual.hpp"
+
+#include <cmath>
+#include <limits>
+
+#include "mcslam/optim/reprojection.hpp"
+
+namespace mcslam::optim {
+namespace {
+
+// Same depth limit as ReprojectionError and reprojection_chi2.
+constexpr double kMinDepth = 1e-6;
+// Distance (pixels, before whitening) reported for an endpoint at or behind the camera plane.
+// ReprojectionError returns false there, but a line is different: a long map line can have an
+// endpoint behind the camera while its visible part is matched, and a false return at the
+// starting point makes Ceres abort the whole solve instead of just this residual. So the
+// residual is held at a constant, finite, large value with zero Jacobian: it cannot pull the
+// solution (Huber bounds its cost, and the chi-square test marks the line an outlier), and a
+// trial step that moves a good endpoint behind the camera raises the cost and is rejected.
+constexpr double kBehindCameraDistance = 1e4;
+
+}  // namespace
+
+LineReprojectionError::LineReprojectionError(const PinholeCamera& camera, const LineMeasurement& m)
+    : fx_(camera.fx),
+      fy_(camera.fy),
+      cx_(camera.cx),
+      cy_(camera.cy),
+      l_(m.coefficients),
+      sqrt_information_(std::sqrt(m.information)) {}
+
+bool LineReprojectionError::Evaluate(double const* const* parameters, double* residuals,
+                                     double** jacobians) const {
+  const double* pose = parameters[0];
+  const bool want_pose = jacobians != nullptr && jacobians[0] != nullptr;
+  if (want_pose) Eigen::Map<Eigen::Matrix<double, 2, 7, Eigen::RowMajor>>(jacobians[0]).setZero();
+
+  // Row k of the residual depends on the pose and on endpoint k only.
+  for (int k = 0; k < 2; ++k) {
+    const Eigen::Vector3d p_w(parameters[1 + k][0], parameters[1 + k][1], parameters[1 + k][2]);
+    const Eigen::Vector3d p_c = transform_point(pose, p_w);
+    double* J_point = jacobians != nullptr ? jacobians[1 + k] : nullptr;
+    if (J_point != nullptr)
+      Eigen::Map<Eigen::Matrix<double, 2, 3, Eigen::RowMajor>>(J_point).setZero();
+    const double z = p_c.z();
+    if (z <= kMinDepth) {
+      residuals[k] = sqrt_information_ * kBehindCameraDistance;
+      continue;
+    }
+    const double inv_z = 1.0 / z;
+    const double u = fx_ * p_c.x() * inv_z + cx_;
+    const double v = fy_ * p_c.y() * inv_z + cy_;
+    residuals[k] = sqrt_information_ * (l_.x() * u + l_.y() * v + l_.z());
+    if (!want_pose && J_point == nullptr) continue;
+
+    // d e / d p_c for e = a u + b v + c.
+    const double a_fx = l_.x() * fx_, b_fy = l_.y() * fy_;
+    const Eigen::RowVector3d d_pc =
+        sqrt_information_ * Eigen::RowVector3d(a_fx * inv_z, b_fy * inv_z,
+                                               -(a_fx * p_c.x() + b_fy * p_c.y()) * inv_z * inv_z);
+    Eigen::Matrix<double, 3, 7> d_pose;
+    Eigen::Matrix3d d_point;
+    transform_point_jacobians(pose, p_w, want_pose ? &d_pose : nullptr,
+                              J_point != nullptr ? &d_point : nullptr);
+    if (want_pose) {
+      Eigen::Map<Eigen::Matrix<double, 2, 7, Eigen::RowMajor>> J(jacobians[0]);
+      J.row(k) = d_pc * d_pose;
+    }
+    if (J_point != nullptr) {
+      Eigen::Map<Eigen::Matrix<double, 2, 3, Eigen::RowMajor>> J(J_point);
+      J.row(k) = d_pc * d_point;
+    }
+  }
+  return true;
+}
+
+PoseOnlyLineError::PoseOnlyLineError(const PinholeCamera& camera, const LineMeasurement& m,
+                                     const Eigen::Vector3d& start_w, const Eigen::Vector3d& end_w)
+    : full_(camera, m), start_w_(start_w), end_w_(end_w) {}
+
+bool PoseOnlyLineError::Evaluate(double const* const* parameters, double* residuals,
+                                 double** jacobians) const {
+  const double* params[3] = {parameters[0], start_w_.data(), end_w_.data()};
+  double* jac[3] = {jacobians != nullptr ? jacobians[0] : nullptr, nullptr, nullptr};
+  return full_.Evaluate(params, residuals, jacobians != nullptr ? jac : nullptr);
+}
+
+double line_chi2(const PinholeCamera& camera, const LineMeasurement& m,
+                 const Eigen::Vector3d& start_c, const Eigen::Vector3d& end_c) {
+  if (start_c.z() <= kMinDepth || end_c.z() <= kMinDepth)
+    return std::numeric_limits<double>::infinity();
+  const Eigen::Vector3d& l = m.coefficients;
+  const auto distance = [&](const Eigen::Vector3d& p_c) {
+    const Eigen::Vector2d uv = camera.project(p_c);
+    return l.x() * uv.x() + l.y() * uv.y() + l.z();
+  };
+  const double ds = distance(start_c), de = distance(end_c);
+  return ds * ds + de * de;
+}
+
+}  // namespace mcslam::optim

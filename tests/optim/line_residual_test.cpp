@@ -1,0 +1,192 @@
+#include "mcslam/optim/line_residual.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "mcslam/optim/se3_manifold.hpp"
+#include "support/numeric_diff.hpp"
+#include "support/test_camera.hpp"
+
+namespace mcslam::optim {
+namespace {
+
+using RowJ7 = Eigen::Matrix<double, 2, 7, Eigen::RowMajor>;
+using RowJ3 = Eigen::Matrix<double, 2, 3, Eigen::RowMajor>;
+
+SE3 random_pose(std::mt19937& rng) {
+  std::uniform_real_distribution<double> u(-0.5, 0.5);
+  Vector6d xi;
+  for (int i = 0; i < 6; ++i) xi[i] = u(rng);
+  return SE3::exp(xi);
+}
+
+// The normalised image line through two pixels.
+Eigen::Vector3d line_through(const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+  const Eigen::Vector3d l = a.homogeneous().cross(b.homogeneous());
+  return l / l.head<2>().norm();
+}
+
+struct LineCase {
+  SE3 T_c_w;
+  Eigen::Vector3d start_w, end_w;
+  LineMeasurement m;
+};
+
+// Endpoints in front of the camera, observed as a line a few pixels off their projections.
+LineCase random_case(const PinholeCamera& cam, std::mt19937& rng) {
+  std::uniform_real_distribution<double> u(50.0, 590.0), v(50.0, 430.0), z(1.0, 4.0),
+      off(-5.0, 5.0);
+  LineCase c;
+  c.T_c_w = random_pose(rng);
+  const Eigen::Vector3d s_c = cam.unproject({u(rng), v(rng)}, z(rng));
+  const Eigen::Vector3d e_c = cam.unproject({u(rng), v(rng)}, z(rng));
+  c.start_w = c.T_c_w.inverse() * s_c;
+  c.end_w = c.T_c_w.inverse() * e_c;
+  c.m.coefficients = line_through(cam.project(s_c) + Eigen::Vector2d(off(rng), off(rng)),
+                                  cam.project(e_c) + Eigen::Vector2d(off(rng), off(rng)));
+  c.m.information = 1.0 / 2.25;
+  return c;
+}
+
+double tolerance(const Eigen::MatrixXd& numeric) { return 1e-5 * (1.0 + numeric.norm()); }
+
+TEST(LineReprojectionError, JacobiansMatchNumeric) {
+  std::mt19937 rng(7);
+  const PinholeCamera cam = test::make_camera(520.0, 515.0, 320.0, 240.0);
+  for (int trial = 0; trial < 6; ++trial) {
+    const LineCase c = random_case(cam, rng);
+    LineReprojectionError cost(cam, c.m);
+    double pose[7];
+    pose_to_block(c.T_c_w, pose);
+    Eigen::Vector3d start = c.start_w, end = c.end_w;
+    const auto eval = [&](const double* p, const double* s, const double* e) {
+      const double* params[3] = {p, s, e};
+      Eigen::Vector2d r;
+      EXPECT_TRUE(cost.Evaluate(params, r.data(), nullptr));
+      return Eigen::VectorXd(r);
+    };
+    RowJ7 J_pose;
+    RowJ3 J_start, J_end;
+    double* jac[3] = {J_pose.data(), J_start.data(), J_end.data()};
+    const double* params[3] = {pose, start.data(), end.data()};
+    Eigen::Vector2d r;
+    ASSERT_TRUE(cost.Evaluate(params, r.data(), jac));
+    EXPECT_LT((Eigen::VectorXd(r) - eval(pose, start.data(), end.data())).norm(), 1e-12);
+
+    // Ambient Jacobians against differences of the raw doubles.
+    const Eigen::MatrixXd num_pose = test::numeric_jacobian(
+        [&](const Eigen::VectorXd& x) { return eval(x.data(), start.data(), end.data()); },
+        Eigen::Map<Eigen::VectorXd>(pose, 7));
+    const Eigen::MatrixXd num_start = test::numeric_jacobian(
+        [&](const Eigen::VectorXd& x) { return eval(pose, x.data(), end.data()); }, start);
+    const Eigen::MatrixXd num_end = test::numeric_jacobian(
+        [&](const Eigen::VectorXd& x) { return eval(pose, start.data(), x.data()); }, end);
+    EXPECT_LT((num_pose - Eigen::MatrixXd(J_pose)).norm(), tolerance(num_pose)) << trial;
+    EXPECT_LT((num_start - Eigen::MatrixXd(J_start)).norm(), tolerance(num_start)) << trial;
+    EXPECT_LT((num_end - Eigen::MatrixXd(J_end)).norm(), tolerance(num_end)) << trial;
+    // Row k depends on endpoint k only.
+    EXPECT_EQ(J_start.row(1).norm(), 0.0);
+    EXPECT_EQ(J_end.row(0).norm(), 0.0);
+
+    // Through the SE3 manifold: differences of exp(xi) * T.
+    SE3Manifold manifold;
+    Eigen::Matrix<double, 7, 6, Eigen::RowMajor> P;
+    manifold.PlusJacobian(pose, P.data());
+    const Eigen::MatrixXd num_tangent = test::numeric_jacobian(
+        [&](const Eigen::VectorXd& xi) {
+          double moved[7];
+          manifold.Plus(pose, xi.data(), moved);
+          return eval(moved, start.data(), end.data());
+        },
+        Eigen::VectorXd::Zero(6));
+    EXPECT_LT((num_tangent - Eigen::MatrixXd(J_pose) * P).norm(), tolerance(num_tangent)) << trial;
+  }
+}
+
+TEST(PoseOnlyLineError, MatchesFullResidualAndNumeric) {
+  std::mt19937 rng(11);
+  const PinholeCamera cam = test::make_camera();
+  for (int trial = 0; trial < 4; ++trial) {
+    const LineCase c = random_case(cam, rng);
+    LineReprojectionError full(cam, c.m);
+    PoseOnlyLineError pose_only(cam, c.m, c.start_w, c.end_w);
+    double pose[7];
+    pose_to_block(c.T_c_w, pose);
+    const double* params_full[3] = {pose, c.start_w.data(), c.end_w.data()};
+    const double* params_pose[1] = {pose};
+    RowJ7 J_full, J_pose_only;
+    RowJ3 J_start, J_end;
+    double* jac_full[3] = {J_full.data(), J_start.data(), J_end.data()};
+    double* jac_pose[1] = {J_pose_only.data()};
+    Eigen::Vector2d r_full, r_pose;
+    ASSERT_TRUE(full.Evaluate(params_full, r_full.data(), jac_full));
+    ASSERT_TRUE(pose_only.Evaluate(params_pose, r_pose.data(), jac_pose));
+    EXPECT_LT((r_full - r_pose).norm(), 1e-12);
+    EXPECT_LT((J_full - J_pose_only).norm(), 1e-12);
+
+    const Eigen::MatrixXd num = test::numeric_jacobian(
+        [&](const Eigen::VectorXd& x) {
+          const double* p[1] = {x.data()};
+          Eigen::Vector2d out;
+          pose_only.Evaluate(p, out.data(), nullptr);
+          return Eigen::VectorXd(out);
+        },
+        Eigen::Map<Eigen::VectorXd>(pose, 7));
+    EXPECT_LT((num - Eigen::MatrixXd(J_pose_only)).norm(), tolerance(num)) << trial;
+  }
+}
+
+TEST(LineReprojectionError, SignedPixelDistancesAndChi2) {
+  const PinholeCamera cam = test::make_camera();
+  const SE3 T_c_w = SE3::exp((Vector6d() << 0.1, 0.2, -0.1, 0.05, -0.1, 0.2).finished());
+  const Eigen::Vector3d s_c(-0.4, 0.1, 2.0), e_c(0.5, -0.2, 3.0);
+  LineMeasurement m;
+  m.coefficients = line_through(cam.project(s_c), cam.project(e_c));
+  m.information = 0.25;
+  double pose[7];
+  pose_to_block(T_c_w, pose);
+  const Eigen::Vector3d s_w = T_c_w.inverse() * s_c, e_w = T_c_w.inverse() * e_c;
+  const double* params[3] = {pose, s_w.data(), e_w.data()};
+  Eigen::Vector2d r;
+  ASSERT_TRUE(LineReprojectionError(cam, m).Evaluate(params, r.data(), nullptr));
+  EXPECT_LT(r.norm(), 1e-9);
+  EXPECT_NEAR(line_chi2(cam, m, s_c, e_c), 0.0, 1e-12);
+
+  // Moving the observed line 2 px along its normal: each endpoint is 2 px off, whitened to 1.
+  m.coefficients.z() -= 2.0;
+  ASSERT_TRUE(LineReprojectionError(cam, m).Evaluate(params, r.data(), nullptr));
+  EXPECT_NEAR(r[0], -1.0, 1e-9);
+  EXPECT_NEAR(r[1], -1.0, 1e-9);
+  EXPECT_NEAR(line_chi2(cam, m, s_c, e_c), 8.0, 1e-9);  // unwhitened, pixels^2
+}
+
+TEST(LineReprojectionError, BehindCameraStaysFinite) {
+  const PinholeCamera cam = test::make_camera();
+  LineMeasurement m;
+  m.coefficients = line_through({100.0, 100.0}, {500.0, 300.0});
+  LineReprojectionError cost(cam, m);
+  double pose[7];
+  pose_to_block(SE3(), pose);
+  for (const double z : {0.0, -1.0, 1e-9}) {
+    const Eigen::Vector3d s_w(0.2, 0.1, z), e_w(-0.3, 0.2, 2.0);
+    const double* params[3] = {pose, s_w.data(), e_w.data()};
+    RowJ7 J_pose;
+    RowJ3 J_start, J_end;
+    double* jac[3] = {J_pose.data(), J_start.data(), J_end.data()};
+    Eigen::Vector2d r;
+    ASSERT_TRUE(cost.Evaluate(params, r.data(), jac));
+    EXPECT_TRUE(r.allFinite());
+    EXPECT_GT(r[0], 1e3);  // large enough to be an outlier
+    EXPECT_TRUE(J_pose.allFinite());
+    EXPECT_EQ(J_pose.row(0).norm(), 0.0);
+    EXPECT_GT(J_pose.row(1).norm(), 0.0);  // the visible endpoint still constrains the pose
+    EXPECT_EQ(J_start.norm(), 0.0);
+    EXPECT_TRUE(std::isinf(line_chi2(cam, m, s_w, e_w)));
+    EXPECT_TRUE(std::isinf(line_chi2(cam, m, e_w, s_w)));
+  }
+}
+
+}  // namespace
+}  // namespace mcslam::optim
