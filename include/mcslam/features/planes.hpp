@@ -1,0 +1,81 @@
+#pragma once
+// Planes from an organised depth image: the image is cut into small cells, each cell with a good
+// plane fit becomes a node, and neighbouring nodes whose planes agree are merged (agglomerative
+// clustering in the manner of PEAC), then every plane is refitted on its pixels.
+
+#include <Eigen/Core>
+#include <opencv2/core/mat.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "mcslam/core/camera.hpp"
+
+namespace mcslam::features {
+
+struct PlaneOptions {
+  /// Side of the square cells (pixels).
+  int cell_size = 10;
+  /// A cell is planar when the RMS distance of its points to their plane is below
+  /// max(cell_tolerance, cell_tolerance_per_metre * z^2) metres (depth noise grows with z^2).
+  double cell_tolerance = 0.004;
+  double cell_tolerance_per_metre = 0.004;
+  /// Neighbouring regions merge when their normals differ by less than this angle and each one's
+  /// centroid lies within merge_distance (plus the z^2 term above) of the other's plane. (A cell
+  /// joining a growing region is tested by its centroid only, its own plane being too uncertain
+  /// to extrapolate; the angle allows for the normals' uncertainty, and a far, noise-dominated
+  /// cell whose normal means little joins when the region's plane fits its points within half the
+  /// cell tolerance.)
+  double merge_angle_deg = 10.0;
+  double merge_distance = 0.02;
+  /// Planes with fewer pixels than min_area_fraction of the image are dropped.
+  double min_area_fraction = 0.02;
+  /// Planes whose final RMS fit error exceeds this (metres) are dropped.
+  double max_fit_rms = 0.03;
+  /// At most this many planes are kept, largest first.
+  int max_planes = 8;
+
+  std::optional<std::string> check() const;
+};
+
+struct PlaneFeature {
+  /// Hessian form in the camera frame: normal . p + d = 0 with |normal| = 1, oriented towards
+  /// the camera (d > 0).
+  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();
+  double d = 1.0;
+  /// Mean of the inlier points (camera frame).
+  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+  int num_pixels = 0;
+  /// RMS point-to-plane distance of the inlier points (metres).
+  double rms = 0.0;
+  /// Convex hull of the inlier points projected onto the plane (camera frame, counter-clockwise
+  /// seen from the normal side), for display and for the plane's extent in the map.
+  std::vector<Eigen::Vector3d> hull;
+
+  /// Signed distance of a camera-frame point to the plane (positive on the camera's side).
+  double distance(const Eigen::Vector3d& p_c) const { return normal.dot(p_c) + d; }
+};
+
+struct PlaneExtraction {
+  std::vector<PlaneFeature> planes;
+  /// CV_8SC1 of the depth image's size: the index of the plane each pixel belongs to, -1 none.
+  cv::Mat labels;
+};
+
+class PlaneExtractor {
+ public:
+  /// Throws mcslam::InputError when options.check() or camera.check() fails.
+  PlaneExtractor(const PinholeCamera& camera, const PlaneOptions& options);
+
+  /// Planes of a CV_32FC1 depth image in metres (0 or non-finite = missing) of the camera's size;
+  /// any other input yields no planes. Deterministic and thread-safe.
+  PlaneExtraction extract(const cv::Mat& depth) const;
+
+  const PlaneOptions& options() const { return options_; }
+
+ private:
+  PinholeCamera camera_;
+  PlaneOptions options_;
+};
+
+}  // namespace mcslam::features

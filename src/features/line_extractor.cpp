@@ -1,0 +1,507 @@
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <limits>
+#include <numbers>
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/line_descriptor.hpp>
+#include <optional>
+#include <vector>
+
+#include "mcslam/core/error.hpp"
+#include "mcslam/features/lines.hpp"
+
+namespace mcslam::features {
+namespace {
+
+namespace ld = cv::line_descriptor;
+
+/// Fraction of the segment skipped at each end when sampling depth: LSD endpoints are the least
+/// precise part of a segment and often touch the next surface (corners, occlusions).
+constexpr double kEndMargin = 0.05;
+/// Depth is also looked up this many pixels to each side of the segment, and across a depth
+/// discontinuity the nearest depth wins: a segment on an occluding contour then takes the
+/// occluder's depth (the surface the edge belongs to) even when depth and colour are a pixel
+/// apart or the contour pixels lack depth (Kinect-type sensors drop both sides of a jump).
+constexpr int kSideOffset = 3;
+/// Depth differences above this fraction of the depth (or twice the fit tolerance) between
+/// pixels a few apart are taken as a jump between two surfaces.
+constexpr double kRelativeDepthJump = 0.05;
+/// Typical error of a segment's position across its direction, in pixels.
+constexpr double kSegmentPositionError = 0.5;
+/// A fitted 3D line whose angle to an endpoint's viewing ray is below this is rejected: the
+/// endpoint (ray/line intersection) is then ill-conditioned.
+constexpr double kMinRayAngleDeg = 10.0;
+/// Hypotheses from sample pairs less than 1/kMinPairGapDivisor of the valid samples apart are not
+/// tried: their direction is poorly determined and the wider pairs already cover every layout.
+constexpr int kMinPairGapDivisor = 4;
+/// BinaryDescriptor stores pixel coordinates and sizes in `short`.
+constexpr int kMaxDescriptorImageSide = 32000;
+
+/// Liang-Barsky clipping of the segment a-b to [0, w-1] x [0, h-1]; false when nothing is left.
+bool clip_to_image(Eigen::Vector2d& a, Eigen::Vector2d& b, double w, double h) {
+  const Eigen::Vector2d d = b - a;
+  double t0 = 0.0;
+  double t1 = 1.0;
+  const std::array<double, 4> p{-d.x(), d.x(), -d.y(), d.y()};
+  const std::array<double, 4> q{a.x(), w - 1.0 - a.x(), a.y(), h - 1.0 - a.y()};
+  for (int k = 0; k < 4; ++k) {
+    if (p[k] == 0.0) {
+      if (q[k] < 0.0) return false;
+      continue;
+    }
+    const double r = q[k] / p[k];
+    if (p[k] < 0.0) {
+      t0 = std::max(t0, r);
+    } else {
+      t1 = std::min(t1, r);
+    }
+    if (t0 > t1) return false;
+  }
+  const Eigen::Vector2d a0 = a;
+  a = a0 + t0 * d;
+  b = a0 + t1 * d;
+  return true;
+}
+
+/// A 3D line through `point` with unit `direction`.
+struct Line3 {
+  Eigen::Vector3d point = Eigen::Vector3d::Zero();
+  Eigen::Vector3d direction = Eigen::Vector3d::UnitX();
+
+  double squared_distance(const Eigen::Vector3d& p) const {
+    const Eigen::Vector3d v = p - point;
+    return (v - v.dot(direction) * direction).squaredNorm();
+  }
+};
+
+/// Total least squares line (centroid + principal axis) through the points flagged in `use`.
+bool pca_line(const std::vector<Eigen::Vector3d>& points, const std::vector<char>& use,
+              Line3& line) {
+  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+  int count = 0;
+  for (std::size_t k = 0; k < points.size(); ++k) {
+    if (!use[k]) continue;
+    centroid += points[k];
+    ++count;
+  }
+  if (count < 2) return false;
+  centroid /= count;
+  Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
+  for (std::size_t k = 0; k < points.size(); ++k) {
+    if (!use[k]) continue;
+    const Eigen::Vector3d v = points[k] - centroid;
+    scatter += v * v.transpose();
+  }
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(scatter);
+  if (solver.info() != Eigen::Success) return false;
+  // Eigenvalues ascend: the last eigenvector is the principal axis.
+  const Eigen::Vector3d direction = solver.eigenvectors().col(2);
+  if (!direction.allFinite() || solver.eigenvalues()(2) <= 0.0) return false;
+  line.point = centroid;
+  line.direction = direction.normalized();
+  return true;
+}
+
+/// Flags the inliers of `line` (distance below the per-point tolerance); returns their number.
+int mark_inliers(const Line3& line, const std::vector<Eigen::Vector3d>& points,
+                 const std::vector<double>& tolerance2, std::vector<char>& inlier) {
+  int count = 0;
+  for (std::size_t k = 0; k < points.size(); ++k) {
+    inlier[k] = line.squared_distance(points[k]) < tolerance2[k] ? 1 : 0;
+    count += inlier[k];
+  }
+  return count;
+}
+
+/// The point on the ray {lambda * ray, lambda > 0} closest to `line`, if the two are not nearly
+/// parallel and that point lies in front of the camera within `max_miss` of the line.
+std::optional<Eigen::Vector3d> ray_line_point(const Eigen::Vector3d& ray, const Line3& line,
+                                              double min_sin_angle, double max_miss) {
+  const Eigen::Vector3d r = ray.normalized();
+  const Eigen::Vector3d& d = line.direction;
+  const double b = r.dot(d);
+  const double denom = 1.0 - b * b;  // sin^2 of the angle between the ray and the line
+  if (!(denom > min_sin_angle * min_sin_angle)) return std::nullopt;
+  // Minimise |lambda r - (p + mu d)|^2 over lambda, mu (unit r and d).
+  const Eigen::Vector3d& p = line.point;
+  const double rp = r.dot(p);
+  const double dp = d.dot(p);
+  const double lambda = (rp - b * dp) / denom;
+  const double mu = (b * rp - dp) / denom;
+  if (!(lambda > 0.0)) return std::nullopt;
+  const Eigen::Vector3d on_ray = lambda * r;
+  if ((on_ray - (p + mu * d)).norm() > max_miss) return std::nullopt;
+  if (!(on_ray.z() > 0.0)) return std::nullopt;
+  return on_ray;
+}
+
+}  // namespace
+
+std::optional<std::string> LineOptions::check() const {
+  if (!std::isfinite(min_length) || min_length < 0.0)
+    return "lines.min_length must be finite and >= 0";
+  if (max_lines < 1 || max_lines > 100000) return "lines.max_lines must be in [1, 100000]";
+  if (!std::isfinite(detection_scale) || detection_scale < 0.05 || detection_scale > 1.0)
+    return "lines.detection_scale must be in [0.05, 1]";
+  if (depth_samples < 4 || depth_samples > 256) return "lines.depth_samples must be in [4, 256]";
+  if (!std::isfinite(min_valid_fraction) || min_valid_fraction <= 0.0 || min_valid_fraction > 1.0)
+    return "lines.min_valid_fraction must be in (0, 1]";
+  if (!std::isfinite(fit_tolerance) || fit_tolerance <= 0.0)
+    return "lines.fit_tolerance must be finite and > 0";
+  if (!std::isfinite(fit_tolerance_per_metre) || fit_tolerance_per_metre < 0.0)
+    return "lines.fit_tolerance_per_metre must be finite and >= 0";
+  if (!std::isfinite(min_inlier_fraction) || min_inlier_fraction <= 0.0 ||
+      min_inlier_fraction > 1.0)
+    return "lines.min_inlier_fraction must be in (0, 1]";
+  return std::nullopt;
+}
+
+Eigen::Vector3d LineFeature::coefficients() const {
+  // l = start_h x end_h, scaled so that (a, b) is the unit normal: (a, b) is the direction
+  // end - start turned by +90 degrees, (-dy, dx) / |d|.
+  const Eigen::Vector3d s(start.x(), start.y(), 1.0);
+  const Eigen::Vector3d e(end.x(), end.y(), 1.0);
+  const Eigen::Vector3d l = s.cross(e);
+  const double n = l.head<2>().norm();
+  if (!(n > 0.0)) return Eigen::Vector3d::Zero();
+  return l / n;
+}
+
+struct LineExtractor::Impl {
+  cv::Ptr<cv::LineSegmentDetector> lsd;
+  cv::Ptr<ld::BinaryDescriptor> lbd;
+  // Scratch buffers reused between frames (hence: one extractor per thread).
+  cv::Mat scaled;
+  std::vector<cv::Vec4f> segments;
+  std::vector<ld::KeyLine> keylines;
+  cv::Mat descriptors;
+};
+
+LineExtractor::LineExtractor(const LineOptions& options) : options_(options) {
+  if (auto problem = options_.check()) throw InputError(*problem);
+  impl_ = std::make_unique<Impl>();
+  // Standard refinement (regions are cut where the aligned-pixel density drops, which splits
+  // curved edges) on an image we scale ourselves: LSD's own scale would blur the full image.
+  impl_->lsd = cv::createLineSegmentDetector(cv::LSD_REFINE_STD, 1.0);
+  impl_->lbd = ld::BinaryDescriptor::createBinaryDescriptor();
+}
+
+LineExtractor::~LineExtractor() = default;
+
+std::vector<LineFeature> LineExtractor::extract(const cv::Mat& gray) const {
+  std::vector<LineFeature> result;
+  if (gray.empty() || gray.type() != CV_8UC1 || gray.dims != 2) return result;
+  Impl& impl = *impl_;
+  const double scale = options_.detection_scale;
+  const cv::Size size(std::max(1, static_cast<int>(std::lround(gray.cols * scale))),
+                      std::max(1, static_cast<int>(std::lround(gray.rows * scale))));
+  // LSD needs a few pixels for its gradients; the descriptor stores coordinates in `short`.
+  if (size.width < 8 || size.height < 8) return result;
+  if (size.width > kMaxDescriptorImageSide || size.height > kMaxDescriptorImageSide) return result;
+
+  // The scratch buffer never refers to the caller's image (a later resize would write into it).
+  const bool rescale = size != gray.size();
+  const cv::Mat& image = rescale ? impl.scaled : gray;
+  try {
+    if (rescale) cv::resize(gray, impl.scaled, size, 0.0, 0.0, cv::INTER_AREA);
+    impl.segments.clear();
+    impl.lsd->detect(image, impl.segments);
+  } catch (const cv::Exception&) {
+    return result;
+  }
+
+  // LSD reports pixel-centre coordinates of the scaled image; cv::resize maps pixel centres as
+  // x_scaled = (x + 0.5) * sx - 0.5.
+  const double sx = static_cast<double>(size.width) / gray.cols;
+  const double sy = static_cast<double>(size.height) / gray.rows;
+  auto to_full = [&](double x, double y) {
+    return Eigen::Vector2d((x + 0.5) / sx - 0.5, (y + 0.5) / sy - 0.5);
+  };
+  auto to_scaled = [&](const Eigen::Vector2d& p) {
+    return Eigen::Vector2d((p.x() + 0.5) * sx - 0.5, (p.y() + 0.5) * sy - 0.5);
+  };
+
+  struct Candidate {
+    Eigen::Vector2d start;
+    Eigen::Vector2d end;
+    double length;
+    int index;
+  };
+  std::vector<Candidate> candidates;
+  candidates.reserve(impl.segments.size());
+  for (std::size_t i = 0; i < impl.segments.size(); ++i) {
+    const cv::Vec4f& s = impl.segments[i];
+    Eigen::Vector2d a = to_full(s[0], s[1]);
+    Eigen::Vector2d b = to_full(s[2], s[3]);
+    if (!a.allFinite() || !b.allFinite()) continue;
+    if (!clip_to_image(a, b, gray.cols, gray.rows)) continue;
+    const double length = (b - a).norm();
+    if (!(length >= options_.min_length) || length <= 0.0) continue;
+    candidates.push_back({a, b, length, static_cast<int>(i)});
+  }
+  // Longest first; LSD's output order (deterministic) breaks ties.
+  std::sort(candidates.begin(), candidates.end(), [](const Candidate& x, const Candidate& y) {
+    return x.length != y.length ? x.length > y.length : x.index < y.index;
+  });
+  if (candidates.size() > static_cast<std::size_t>(options_.max_lines))
+    candidates.resize(static_cast<std::size_t>(options_.max_lines));
+  if (candidates.empty()) return result;
+
+  // LBD on the detection image, where LSD found the segments (so its 9 bands of 7 pixels are
+  // detection-image pixels): at full resolution the descriptor costs ~3x more, its support
+  // region growing with the segment length in pixels (~8 ms for 80 segments at 640x480).
+  impl.keylines.clear();
+  impl.keylines.reserve(candidates.size());
+  const float max_side = static_cast<float>(std::max(size.width, size.height));
+  for (std::size_t i = 0; i < candidates.size(); ++i) {
+    const Eigen::Vector2d a = to_scaled(candidates[i].start);
+    const Eigen::Vector2d b = to_scaled(candidates[i].end);
+    ld::KeyLine kl;
+    // The image handed to compute() is the detection image, so it is both the "original" image
+    // and octave 0 of the descriptor's pyramid.
+    kl.startPointX = static_cast<float>(a.x());
+    kl.startPointY = static_cast<float>(a.y());
+    kl.endPointX = static_cast<float>(b.x());
+    kl.endPointY = static_cast<float>(b.y());
+    kl.sPointInOctaveX = kl.startPointX;
+    kl.sPointInOctaveY = kl.startPointY;
+    kl.ePointInOctaveX = kl.endPointX;
+    kl.ePointInOctaveY = kl.endPointY;
+    const float dx = kl.endPointX - kl.startPointX;
+    const float dy = kl.endPointY - kl.startPointY;
+    kl.lineLength = std::sqrt(dx * dx + dy * dy);
+    // Direction start -> end: LSD orients segments by the gradient polarity, so the descriptor
+    // (which depends on it) is comparable between views.
+    kl.angle = std::atan2(dy, dx);
+    kl.octave = 0;
+    kl.pt =
+        cv::Point2f(0.5f * (kl.startPointX + kl.endPointX), 0.5f * (kl.startPointY + kl.endPointY));
+    kl.size = std::abs(dx * dy);  // area of the segment's bounding box, as OpenCV's detectors
+    kl.class_id = static_cast<int>(i);
+    // Pixels an 8-connected raster of the segment covers (cv::LineIterator's count).
+    kl.numOfPixels = static_cast<int>(std::lround(std::max(std::abs(dx), std::abs(dy)))) + 1;
+    kl.response = kl.lineLength / max_side;
+    impl.keylines.push_back(kl);
+  }
+  try {
+    impl.lbd->compute(image, impl.keylines, impl.descriptors);
+  } catch (const cv::Exception&) {
+    return result;
+  }
+  if (impl.descriptors.type() != CV_8UC1 || impl.descriptors.cols != 32 ||
+      impl.descriptors.rows != static_cast<int>(impl.keylines.size()))
+    return result;
+
+  // compute() may in principle reorder or drop keylines: rows follow `keylines`, and class_id
+  // names the candidate.
+  std::vector<char> described(candidates.size(), 0);
+  std::vector<LineDescriptor> descriptors(candidates.size());
+  for (std::size_t r = 0; r < impl.keylines.size(); ++r) {
+    const int id = impl.keylines[r].class_id;
+    if (id < 0 || id >= static_cast<int>(candidates.size())) continue;
+    std::memcpy(descriptors[static_cast<std::size_t>(id)].bytes.data(),
+                impl.descriptors.ptr<std::uint8_t>(static_cast<int>(r)), 32);
+    described[static_cast<std::size_t>(id)] = 1;
+  }
+  result.reserve(candidates.size());
+  for (std::size_t i = 0; i < candidates.size(); ++i) {
+    if (!described[i]) continue;
+    LineFeature f;
+    f.start = candidates[i].start.cast<float>();
+    f.end = candidates[i].end.cast<float>();
+    f.descriptor = descriptors[i];
+    result.push_back(f);
+  }
+  return result;
+}
+
+bool LineExtractor::fit_depth(const PinholeCamera& camera, const cv::Mat& depth,
+                              LineFeature& line) const {
+  line.has_depth = false;
+  if (depth.empty() || depth.type() != CV_32FC1 || depth.dims != 2) return false;
+  if (depth.cols != camera.width || depth.rows != camera.height) return false;
+  if (!(camera.fx > 0.0) || !(camera.fy > 0.0) || !std::isfinite(camera.cx) ||
+      !std::isfinite(camera.cy))
+    return false;
+  const Eigen::Vector2d s = line.start.cast<double>();
+  const Eigen::Vector2d e = line.end.cast<double>();
+  if (!s.allFinite() || !e.allFinite()) return false;
+  const Eigen::Vector2d d = e - s;
+  const double length = d.norm();
+  if (!(length >= 1.0)) return false;
+  const Eigen::Vector2d normal(-d.y() / length, d.x() / length);
+
+  // Samples back-projected at their position on the segment (not at the pixel whose depth they
+  // took), so that all of them lie in the plane through the camera centre and the 2D line.
+  const int n = options_.depth_samples;
+  auto tolerance = [&](double z) {
+    return std::max(options_.fit_tolerance, options_.fit_tolerance_per_metre * z * z);
+  };
+  std::vector<Eigen::Vector3d> points;
+  std::vector<double> tolerance2;
+  points.reserve(static_cast<std::size_t>(n));
+  tolerance2.reserve(static_cast<std::size_t>(n));
+  for (int k = 0; k < n; ++k) {
+    const double t = kEndMargin + (1.0 - 2.0 * kEndMargin) * k / (n - 1.0);
+    const Eigen::Vector2d uv = s + t * d;
+    // Depths across the segment (by offset) with the signed distance of their pixel centres
+    // from the segment, and the nearest depth.
+    std::array<double, 2 * kSideOffset + 1> across{};
+    std::array<double, 2 * kSideOffset + 1> offset{};
+    double nearest = std::numeric_limits<double>::infinity();
+    for (int o = -kSideOffset; o <= kSideOffset; ++o) {
+      const Eigen::Vector2d q = uv + o * normal;
+      const long x = std::lround(q.x());
+      const long y = std::lround(q.y());
+      double z = 0.0;
+      if (x >= 0 && y >= 0 && x < depth.cols && y < depth.rows)
+        z = depth.at<float>(static_cast<int>(y), static_cast<int>(x));
+      if (!std::isfinite(z) || z <= 0.0) z = 0.0;
+      const auto index = static_cast<std::size_t>(o + kSideOffset);
+      across[index] = z;
+      offset[index] = normal.dot(Eigen::Vector2d(double(x), double(y)) - uv);
+      if (z > 0.0) nearest = std::min(nearest, z);
+    }
+    if (!std::isfinite(nearest)) continue;
+    // Pixels beyond a depth jump behind the nearest one are background: the segment belongs to
+    // the foreground surface (an occluding contour is an edge of the occluder). Of the
+    // foreground pixels, the one closest to the segment: the nearest depth alone would be biased
+    // towards the camera on surfaces seen at a grazing angle.
+    const double jump = std::max(2.0 * tolerance(nearest), kRelativeDepthJump * nearest);
+    auto foreground = [&](int o) {
+      if (o < -kSideOffset || o > kSideOffset) return 0.0;
+      const double z = across[static_cast<std::size_t>(o + kSideOffset)];
+      return z > 0.0 && z - nearest <= jump ? z : 0.0;
+    };
+    int chosen = 0;
+    double z = 0.0;
+    for (int r = 0; r <= kSideOffset && z == 0.0; ++r) {
+      const double minus = foreground(-r);
+      const double plus = foreground(r);
+      if (minus > 0.0 && (plus == 0.0 || minus <= plus)) {
+        chosen = -r;
+        z = minus;
+      } else if (plus > 0.0) {
+        chosen = r;
+        z = plus;
+      }
+    }
+    // Depth slope across the segment: a line fit z = a + b t over the run of foreground pixels
+    // that starts at `from` and leaves the segment (several pixels average the depth noise).
+    auto side_fit = [&](int from, int step, double& a, double& b) {
+      double st = 0.0, sz = 0.0, stt = 0.0, stz = 0.0;
+      int count = 0;
+      for (int o = from; foreground(o) > 0.0; o += step) {
+        const double t = offset[static_cast<std::size_t>(o + kSideOffset)];
+        const double zo = foreground(o);
+        st += t;
+        sz += zo;
+        stt += t * t;
+        stz += t * zo;
+        ++count;
+      }
+      const double det = count * stt - st * st;
+      if (count < 2 || !(det > 1e-9)) return false;
+      b = (count * stz - st * sz) / det;
+      a = (sz - b * st) / count;
+      return true;
+    };
+    double slope = 0.0;
+    if (chosen != 0) {
+      // The nearest foreground pixel is off the segment (missing depth at the contour, or
+      // colour and depth a pixel apart): extrapolate its surface to the segment when that
+      // changes the depth by more than the noise (~ a third of the tolerance); otherwise the
+      // extrapolation would only amplify the noise.
+      double a = 0.0;
+      double b = 0.0;
+      if (side_fit(chosen, chosen > 0 ? 1 : -1, a, b)) {
+        slope = std::abs(b);
+        if (a > 0.0 && std::abs(a - z) > tolerance(z) / 3.0) z = a;
+      }
+    } else {
+      for (int step : {-1, 1}) {
+        double a = 0.0;
+        double b = 0.0;
+        if (side_fit(0, step, a, b)) slope = std::max(slope, std::abs(b));
+      }
+    }
+    // On a surface seen at a grazing angle, LSD's own error in the segment position (about half
+    // a pixel) makes a depth error beyond the tolerance: such samples are dropped.
+    if (slope * kSegmentPositionError > tolerance(z)) continue;
+    points.push_back(camera.unproject(uv, z));
+    tolerance2.push_back(tolerance(z) * tolerance(z));
+  }
+  const int valid = static_cast<int>(points.size());
+  if (valid < 3 || valid < options_.min_valid_fraction * n) return false;
+
+  // RANSAC over sample pairs, exhaustive and in a fixed order (deterministic), scored by the
+  // truncated squared residual (MSAC). Most segments fit with the first, widest pair: stop as
+  // soon as a hypothesis explains every sample.
+  Line3 best_line;
+  double best_cost = std::numeric_limits<double>::infinity();
+  const int min_gap = std::max(1, valid / kMinPairGapDivisor);
+  bool done = false;
+  for (int gap = valid - 1; gap >= min_gap && !done; --gap) {
+    for (int i = 0; i + gap < valid && !done; ++i) {
+      const Eigen::Vector3d& a = points[static_cast<std::size_t>(i)];
+      const Eigen::Vector3d dir = points[static_cast<std::size_t>(i + gap)] - a;
+      const double dir_norm = dir.norm();
+      if (!(dir_norm > 1e-9)) continue;
+      const Line3 hypothesis{a, dir / dir_norm};
+      double cost = 0.0;
+      int inliers = 0;
+      for (int k = 0; k < valid && cost < best_cost; ++k) {
+        const auto ks = static_cast<std::size_t>(k);
+        const double r = hypothesis.squared_distance(points[ks]) / tolerance2[ks];
+        if (r < 1.0) ++inliers;
+        cost += std::min(r, 1.0);
+      }
+      if (cost < best_cost) {
+        best_cost = cost;
+        best_line = hypothesis;
+        done = inliers == valid;
+      }
+    }
+  }
+  if (!std::isfinite(best_cost)) return false;
+
+  // Refit on the inliers by PCA, then once more on the inliers of the refined line.
+  std::vector<char> inlier(points.size(), 0);
+  int inliers = mark_inliers(best_line, points, tolerance2, inlier);
+  for (int iteration = 0; iteration < 2; ++iteration) {
+    Line3 refined;
+    if (!pca_line(points, inlier, refined)) return false;
+    std::vector<char> next(points.size(), 0);
+    const int count = mark_inliers(refined, points, tolerance2, next);
+    // Keep the refined line unless it lost inliers (the PCA can drift on a two-layer set).
+    if (count < inliers) break;
+    best_line = refined;
+    const bool same = next == inlier;
+    inlier.swap(next);
+    inliers = count;
+    if (same) break;
+  }
+  if (inliers < 2 || inliers < options_.min_inlier_fraction * valid) return false;
+
+  // Endpoints: where the viewing rays of the 2D endpoints pass closest to the 3D line, taken on
+  // the rays so that they project exactly onto the 2D endpoints.
+  double max_tol2 = 0.0;
+  for (std::size_t k = 0; k < points.size(); ++k)
+    if (inlier[k]) max_tol2 = std::max(max_tol2, tolerance2[k]);
+  const double max_miss = 2.0 * std::sqrt(max_tol2);
+  const double min_sin = std::sin(kMinRayAngleDeg * std::numbers::pi / 180.0);
+  const auto start_c = ray_line_point(camera.unproject(s, 1.0), best_line, min_sin, max_miss);
+  const auto end_c = ray_line_point(camera.unproject(e, 1.0), best_line, min_sin, max_miss);
+  if (!start_c || !end_c) return false;
+  line.start_c = *start_c;
+  line.end_c = *end_c;
+  line.has_depth = true;
+  return true;
+}
+
+}  // namespace mcslam::features
