@@ -1,6 +1,8 @@
 #include "mcslam/map/map.hpp"
 
 #include <algorithm>
+#include <cmath>
+#include <opencv2/imgproc.hpp>
 
 namespace mcslam::map {
 
@@ -17,6 +19,16 @@ const KeyFrame* Map::keyframe(KeyFrameId id) const {
 const MapPoint* Map::point(PointId id) const {
   const auto it = points_.find(id);
   return it == points_.end() ? nullptr : &it->second;
+}
+
+const MapLine* Map::line(LineId id) const {
+  const auto it = lines_.find(id);
+  return it == lines_.end() ? nullptr : &it->second;
+}
+
+const MapPlane* Map::plane(PlaneId id) const {
+  const auto it = planes_.find(id);
+  return it == planes_.end() ? nullptr : &it->second;
 }
 
 std::vector<KeyFrameId> Map::best_covisible(KeyFrameId id, std::size_t n, int min_weight) const {
@@ -53,6 +65,8 @@ KeyFrameId Map::add_keyframe(KeyFrame keyframe) {
   const KeyFrameId id = keyframe.id;
   next_keyframe_id_ = std::max(next_keyframe_id_, id + 1);
   keyframe.landmarks.assign(keyframe.features->points.size(), kNoId);
+  keyframe.line_landmarks.assign(keyframe.features->lines.size(), kNoId);
+  keyframe.plane_landmarks.assign(keyframe.features->planes.size(), kNoId);
   keyframes_.emplace(id, std::move(keyframe));
   last_keyframe_ = id;
   ++version_;
@@ -135,6 +149,12 @@ void Map::erase_keyframe(KeyFrameId id) {
   const std::vector<PointId> landmarks = kit->second.landmarks;
   for (PointId p : landmarks)
     if (p != kNoId) erase_observation(p, id);
+  const std::vector<LineId> lines = kit->second.line_landmarks;
+  for (LineId l : lines)
+    if (l != kNoId) erase_line_observation(l, id);
+  const std::vector<PlaneId> planes = kit->second.plane_landmarks;
+  for (PlaneId p : planes)
+    if (p != kNoId) erase_plane_observation(p, id);
   for (const auto& [other, weight] : kit->second.covisibility)
     if (auto it = keyframes_.find(other); it != keyframes_.end()) it->second.covisibility.erase(id);
   // Frames referenced to keyframes whose parent was this one keep resolving through the chain.
@@ -149,6 +169,10 @@ void Map::set_keyframe_pose(KeyFrameId id, const SE3& T_c_w) {
 
 void Map::set_point_position(PointId id, const Eigen::Vector3d& p_w) {
   if (auto it = points_.find(id); it != points_.end()) it->second.p_w = p_w;
+}
+
+void Map::set_point_color(PointId id, const std::array<std::uint8_t, 3>& rgb) {
+  if (auto it = points_.find(id); it != points_.end()) it->second.color = rgb;
 }
 
 void Map::update_point_appearance(PointId id) {
@@ -208,6 +232,14 @@ void Map::update_covisibility(KeyFrameId id) {
     for (const auto& obs : mp->observations)
       if (obs.first != id) ++counts[obs.first];
   }
+  // Shared lines count like shared points: in low-texture scenes they hold keyframes together.
+  for (LineId l : kit->second.line_landmarks) {
+    if (l == kNoId) continue;
+    const MapLine* ml = line(l);
+    if (ml == nullptr) continue;
+    for (const auto& obs : ml->observations)
+      if (obs.first != id) ++counts[obs.first];
+  }
   for (const auto& [other, weight] : kit->second.covisibility)
     if (auto it = keyframes_.find(other); it != keyframes_.end()) it->second.covisibility.erase(id);
   kit->second.covisibility = counts;
@@ -221,6 +253,226 @@ void Map::add_tracking_statistics(PointId id, int visible, int found) {
     it->second.visible += visible;
     it->second.found += found;
   }
+}
+
+// --- lines ---
+
+LineId Map::add_line(const Eigen::Vector3d& start_w, const Eigen::Vector3d& end_w,
+                     KeyFrameId keyframe, int segment_index) {
+  const LineId id = next_line_id_++;
+  MapLine ml;
+  ml.id = id;
+  ml.start_w = start_w;
+  ml.end_w = end_w;
+  ml.first_keyframe = keyframe;
+  lines_.emplace(id, std::move(ml));
+  add_line_observation(id, keyframe, segment_index);
+  update_line_appearance(id);
+  return id;
+}
+
+void Map::add_line_observation(LineId line_id, KeyFrameId keyframe, int segment_index) {
+  auto lit = lines_.find(line_id);
+  auto kit = keyframes_.find(keyframe);
+  if (lit == lines_.end() || kit == keyframes_.end()) return;
+  auto& slot = kit->second.line_landmarks.at(static_cast<std::size_t>(segment_index));
+  if (slot != kNoId || lit->second.observations.count(keyframe) != 0) return;
+  slot = line_id;
+  lit->second.observations.emplace(keyframe, segment_index);
+}
+
+void Map::erase_line_observation(LineId line_id, KeyFrameId keyframe) {
+  auto lit = lines_.find(line_id);
+  if (lit == lines_.end()) return;
+  const auto oit = lit->second.observations.find(keyframe);
+  if (oit == lit->second.observations.end()) return;
+  if (auto kit = keyframes_.find(keyframe); kit != keyframes_.end())
+    kit->second.line_landmarks[static_cast<std::size_t>(oit->second)] = kNoId;
+  lit->second.observations.erase(oit);
+  if (lit->second.observations.empty())
+    lines_.erase(lit);
+  else
+    update_line_appearance(line_id);
+}
+
+void Map::erase_line(LineId line_id) {
+  auto lit = lines_.find(line_id);
+  if (lit == lines_.end()) return;
+  for (const auto& [kf_id, index] : lit->second.observations)
+    if (auto kit = keyframes_.find(kf_id); kit != keyframes_.end())
+      kit->second.line_landmarks[static_cast<std::size_t>(index)] = kNoId;
+  lines_.erase(lit);
+}
+
+void Map::replace_line(LineId old_line, LineId new_line) {
+  if (old_line == new_line) return;
+  auto oit = lines_.find(old_line);
+  if (oit == lines_.end() || lines_.count(new_line) == 0) return;
+  const MapLine old = oit->second;
+  erase_line(old_line);
+  for (const auto& [kf_id, index] : old.observations) add_line_observation(new_line, kf_id, index);
+  MapLine& target = lines_.at(new_line);
+  target.visible += old.visible;
+  target.found += old.found;
+  extend_line(new_line, old.start_w, old.end_w);
+  update_line_appearance(new_line);
+}
+
+void Map::set_line_endpoints(LineId id, const Eigen::Vector3d& start_w,
+                             const Eigen::Vector3d& end_w) {
+  if (auto it = lines_.find(id); it != lines_.end()) {
+    it->second.start_w = start_w;
+    it->second.end_w = end_w;
+  }
+}
+
+void Map::extend_line(LineId id, const Eigen::Vector3d& start_w, const Eigen::Vector3d& end_w) {
+  auto it = lines_.find(id);
+  if (it == lines_.end()) return;
+  MapLine& ml = it->second;
+  const double length = ml.length();
+  if (!(length > 1e-9)) return;
+  const Eigen::Vector3d dir = (ml.end_w - ml.start_w) / length;
+  // Positions along the line, the current segment being [0, length].
+  const double a = dir.dot(start_w - ml.start_w);
+  const double b = dir.dot(end_w - ml.start_w);
+  const double lo = std::min({0.0, a, b});
+  const double hi = std::max({length, a, b});
+  const Eigen::Vector3d origin = ml.start_w;
+  ml.start_w = origin + lo * dir;
+  ml.end_w = origin + hi * dir;
+}
+
+void Map::update_line_appearance(LineId id) {
+  auto it = lines_.find(id);
+  if (it == lines_.end()) return;
+  std::vector<const features::LineDescriptor*> observed;
+  for (const auto& [kf_id, index] : it->second.observations)
+    if (const KeyFrame* kf = keyframe(kf_id))
+      observed.push_back(&kf->features->lines[static_cast<std::size_t>(index)].descriptor);
+  if (observed.empty()) return;
+  const std::size_t n = observed.size();
+  if (n <= 2) {
+    it->second.descriptor = *observed.front();
+    return;
+  }
+  int best_median = std::numeric_limits<int>::max();
+  std::vector<int> distances(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    for (std::size_t j = 0; j < n; ++j)
+      distances[j] = features::hamming_distance(*observed[i], *observed[j]);
+    std::nth_element(distances.begin(), distances.begin() + static_cast<long>((n - 1) / 2),
+                     distances.end());
+    if (distances[(n - 1) / 2] < best_median) {
+      best_median = distances[(n - 1) / 2];
+      it->second.descriptor = *observed[i];
+    }
+  }
+}
+
+void Map::add_line_statistics(LineId id, int visible, int found) {
+  if (auto it = lines_.find(id); it != lines_.end()) {
+    it->second.visible += visible;
+    it->second.found += found;
+  }
+}
+
+// --- planes ---
+
+namespace {
+
+/// Convex hull of points projected onto the plane (n, d), in world coordinates.
+std::vector<Eigen::Vector3d> plane_hull(const Eigen::Vector3d& normal, double d,
+                                        const std::vector<Eigen::Vector3d>& points) {
+  if (points.size() < 3) return points;
+  // An orthonormal basis (e1, e2) of the plane.
+  const Eigen::Vector3d helper =
+      std::abs(normal.x()) < 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY();
+  const Eigen::Vector3d e1 = normal.cross(helper).normalized();
+  const Eigen::Vector3d e2 = normal.cross(e1);
+  const Eigen::Vector3d origin = -d * normal;
+  std::vector<cv::Point2f> flat;
+  flat.reserve(points.size());
+  for (const auto& p : points)
+    flat.emplace_back(static_cast<float>(e1.dot(p - origin)),
+                      static_cast<float>(e2.dot(p - origin)));
+  std::vector<cv::Point2f> hull;
+  cv::convexHull(flat, hull, false, true);
+  std::vector<Eigen::Vector3d> out;
+  out.reserve(hull.size());
+  for (const auto& h : hull) out.push_back(origin + double(h.x) * e1 + double(h.y) * e2);
+  return out;
+}
+
+}  // namespace
+
+PlaneId Map::add_plane(const Eigen::Vector4d& plane_w, const std::vector<Eigen::Vector3d>& hull_w,
+                       KeyFrameId keyframe, int plane_index) {
+  const PlaneId id = next_plane_id_++;
+  MapPlane mp;
+  mp.id = id;
+  const double norm = plane_w.head<3>().norm();
+  mp.normal = plane_w.head<3>() / norm;
+  mp.d = plane_w[3] / norm;
+  mp.first_keyframe = keyframe;
+  mp.hull = plane_hull(mp.normal, mp.d, hull_w);
+  planes_.emplace(id, std::move(mp));
+  add_plane_observation(id, keyframe, plane_index);
+  return id;
+}
+
+void Map::add_plane_observation(PlaneId plane_id, KeyFrameId keyframe, int plane_index) {
+  auto pit = planes_.find(plane_id);
+  auto kit = keyframes_.find(keyframe);
+  if (pit == planes_.end() || kit == keyframes_.end()) return;
+  auto& slot = kit->second.plane_landmarks.at(static_cast<std::size_t>(plane_index));
+  if (slot != kNoId || pit->second.observations.count(keyframe) != 0) return;
+  slot = plane_id;
+  pit->second.observations.emplace(keyframe, plane_index);
+}
+
+void Map::erase_plane_observation(PlaneId plane_id, KeyFrameId keyframe) {
+  auto pit = planes_.find(plane_id);
+  if (pit == planes_.end()) return;
+  const auto oit = pit->second.observations.find(keyframe);
+  if (oit == pit->second.observations.end()) return;
+  if (auto kit = keyframes_.find(keyframe); kit != keyframes_.end())
+    kit->second.plane_landmarks[static_cast<std::size_t>(oit->second)] = kNoId;
+  pit->second.observations.erase(oit);
+  if (pit->second.observations.empty()) planes_.erase(pit);
+}
+
+void Map::set_plane(PlaneId id, const Eigen::Vector4d& plane_w) {
+  auto it = planes_.find(id);
+  if (it == planes_.end()) return;
+  const double norm = plane_w.head<3>().norm();
+  if (!(norm > 0.0)) return;
+  it->second.normal = plane_w.head<3>() / norm;
+  it->second.d = plane_w[3] / norm;
+  // Keep the extent on the moved plane.
+  it->second.hull = plane_hull(it->second.normal, it->second.d, it->second.hull);
+}
+
+void Map::extend_plane(PlaneId id, const std::vector<Eigen::Vector3d>& points_w) {
+  auto it = planes_.find(id);
+  if (it == planes_.end()) return;
+  std::vector<Eigen::Vector3d> all = it->second.hull;
+  all.insert(all.end(), points_w.begin(), points_w.end());
+  it->second.hull = plane_hull(it->second.normal, it->second.d, all);
+}
+
+void Map::replace_plane(PlaneId old_plane, PlaneId new_plane) {
+  if (old_plane == new_plane) return;
+  auto oit = planes_.find(old_plane);
+  if (oit == planes_.end() || planes_.count(new_plane) == 0) return;
+  const MapPlane old = oit->second;
+  for (const auto& [kf_id, index] : old.observations)
+    if (auto kit = keyframes_.find(kf_id); kit != keyframes_.end())
+      kit->second.plane_landmarks[static_cast<std::size_t>(index)] = kNoId;
+  planes_.erase(oit);
+  for (const auto& [kf_id, index] : old.observations)
+    add_plane_observation(new_plane, kf_id, index);
+  extend_plane(new_plane, old.hull);
 }
 
 }  // namespace mcslam::map

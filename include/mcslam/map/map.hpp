@@ -1,11 +1,13 @@
 #pragma once
-// The sparse map: keyframes, point landmarks and the covisibility graph between keyframes.
+// The sparse map: keyframes, point, line and plane landmarks, and the covisibility graph between
+// keyframes.
 //
 // Ownership and threads: the local mapper is the only writer. The tracker receives a
 // `const Map&` and reads it under a shared lock (Map::read_lock); the mapper modifies it under an
 // exclusive lock (Map::write_lock) held only for short updates. Landmarks and keyframes are
 // referenced by id, never by pointer, so an erased element can never dangle.
 
+#include <array>
 #include <cstdint>
 #include <limits>
 #include <map>
@@ -23,6 +25,8 @@ namespace mcslam::map {
 
 using KeyFrameId = std::uint64_t;
 using PointId = std::uint64_t;
+using LineId = std::uint64_t;
+using PlaneId = std::uint64_t;
 inline constexpr std::uint64_t kNoId = std::numeric_limits<std::uint64_t>::max();
 
 struct KeyFrame {
@@ -33,6 +37,9 @@ struct KeyFrame {
   std::shared_ptr<const features::FrameFeatures> features;
   /// The landmark observed by each feature (kNoId where none); same size as features->points.
   std::vector<PointId> landmarks;
+  /// The same for the frame's line segments (features->lines) and planes (features->planes).
+  std::vector<LineId> line_landmarks;
+  std::vector<PlaneId> plane_landmarks;
   /// Covisibility: number of landmarks shared with each other keyframe (only weights > 0).
   std::unordered_map<KeyFrameId, int> covisibility;
 
@@ -53,11 +60,47 @@ struct MapPoint {
   double min_distance = 0.0;
   double max_distance = 0.0;
   KeyFrameId first_keyframe = kNoId;
+  /// Colour (R, G, B) of the keyframe image where the point was created, for display.
+  std::array<std::uint8_t, 3> color{160, 160, 160};
   /// Tracking statistics for culling: frames in whose view it was, and frames that matched it.
   int visible = 1;
   int found = 1;
 
   double found_ratio() const { return static_cast<double>(found) / visible; }
+};
+
+/// A 3D line segment, stored by its two endpoints as the paper does. The endpoints span what the
+/// observations have seen of the line (they grow as new observations extend it).
+struct MapLine {
+  LineId id = kNoId;
+  Eigen::Vector3d start_w = Eigen::Vector3d::Zero();
+  Eigen::Vector3d end_w = Eigen::Vector3d::Zero();
+  /// The observation descriptor with the least median distance to the others.
+  features::LineDescriptor descriptor;
+  /// keyframe -> index of the segment that observes this line.
+  std::map<KeyFrameId, int> observations;
+  KeyFrameId first_keyframe = kNoId;
+  int visible = 1;
+  int found = 1;
+
+  Eigen::Vector3d direction() const { return (end_w - start_w).normalized(); }
+  double length() const { return (end_w - start_w).norm(); }
+  double found_ratio() const { return static_cast<double>(found) / visible; }
+};
+
+/// An infinite plane n . p + d = 0 (world frame, |n| = 1) and the extent observed of it.
+struct MapPlane {
+  PlaneId id = kNoId;
+  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();
+  double d = 0.0;
+  /// keyframe -> index of the frame plane that observes it.
+  std::map<KeyFrameId, int> observations;
+  /// Convex hull (world frame, in the plane) of everything observed of the plane, for display.
+  std::vector<Eigen::Vector3d> hull;
+  KeyFrameId first_keyframe = kNoId;
+
+  Eigen::Vector4d coefficients() const { return {normal.x(), normal.y(), normal.z(), d}; }
+  double distance(const Eigen::Vector3d& p_w) const { return normal.dot(p_w) + d; }
 };
 
 /// How a culled keyframe's pose relates to a surviving one, so that frames referenced to it can
@@ -83,6 +126,12 @@ class Map {
   const MapPoint* point(PointId id) const;
   const std::unordered_map<KeyFrameId, KeyFrame>& keyframes() const { return keyframes_; }
   const std::unordered_map<PointId, MapPoint>& points() const { return points_; }
+  std::size_t num_lines() const { return lines_.size(); }
+  std::size_t num_planes() const { return planes_.size(); }
+  const MapLine* line(LineId id) const;
+  const MapPlane* plane(PlaneId id) const;
+  const std::unordered_map<LineId, MapLine>& lines() const { return lines_; }
+  const std::unordered_map<PlaneId, MapPlane>& planes() const { return planes_; }
   /// Up to `n` covisible keyframes of `id`, by decreasing weight (ties: increasing id).
   std::vector<KeyFrameId> best_covisible(KeyFrameId id, std::size_t n, int min_weight = 1) const;
   /// The pose of a keyframe, following the chain of culled keyframes to a surviving one.
@@ -104,20 +153,51 @@ class Map {
   void erase_keyframe(KeyFrameId keyframe);
   void set_keyframe_pose(KeyFrameId id, const SE3& T_c_w);
   void set_point_position(PointId id, const Eigen::Vector3d& p_w);
+  void set_point_color(PointId id, const std::array<std::uint8_t, 3>& rgb);
   /// Recomputes descriptor, normal and distance range of a point from its observations.
   void update_point_appearance(PointId id);
   /// Recomputes the covisibility weights of `id` (and the reverse edges).
   void update_covisibility(KeyFrameId id);
   void add_tracking_statistics(PointId id, int visible, int found);
+
+  // Lines (same conventions as points).
+  LineId add_line(const Eigen::Vector3d& start_w, const Eigen::Vector3d& end_w, KeyFrameId keyframe,
+                  int segment_index);
+  void add_line_observation(LineId line, KeyFrameId keyframe, int segment_index);
+  void erase_line_observation(LineId line, KeyFrameId keyframe);
+  void erase_line(LineId line);
+  void replace_line(LineId old_line, LineId new_line);
+  void set_line_endpoints(LineId id, const Eigen::Vector3d& start_w, const Eigen::Vector3d& end_w);
+  /// Grows the segment so that it covers the projection of [start_w, end_w] onto its line.
+  void extend_line(LineId id, const Eigen::Vector3d& start_w, const Eigen::Vector3d& end_w);
+  /// Recomputes the representative descriptor from the observations.
+  void update_line_appearance(LineId id);
+  void add_line_statistics(LineId id, int visible, int found);
+
+  // Planes.
+  PlaneId add_plane(const Eigen::Vector4d& plane_w, const std::vector<Eigen::Vector3d>& hull_w,
+                    KeyFrameId keyframe, int plane_index);
+  void add_plane_observation(PlaneId plane, KeyFrameId keyframe, int plane_index);
+  void erase_plane_observation(PlaneId plane, KeyFrameId keyframe);
+  void set_plane(PlaneId id, const Eigen::Vector4d& plane_w);
+  /// Adds observed points (world) of the plane to its extent: the hull of the old hull and them,
+  /// both projected onto the plane.
+  void extend_plane(PlaneId id, const std::vector<Eigen::Vector3d>& points_w);
+  /// Moves every observation and the extent of `old_plane` to `new_plane`, then erases it.
+  void replace_plane(PlaneId old_plane, PlaneId new_plane);
   void bump_version() { ++version_; }
 
  private:
   mutable std::shared_mutex mutex_;
   std::unordered_map<KeyFrameId, KeyFrame> keyframes_;
   std::unordered_map<PointId, MapPoint> points_;
+  std::unordered_map<LineId, MapLine> lines_;
+  std::unordered_map<PlaneId, MapPlane> planes_;
   std::unordered_map<KeyFrameId, ErasedKeyFrame> erased_keyframes_;
   KeyFrameId next_keyframe_id_ = 0;
   PointId next_point_id_ = 0;
+  LineId next_line_id_ = 0;
+  PlaneId next_plane_id_ = 0;
   KeyFrameId last_keyframe_ = kNoId;
   std::uint64_t version_ = 0;
 };
