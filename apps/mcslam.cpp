@@ -19,7 +19,8 @@ int run_command(const mcslam::app::RunRequest& request, bool quiet) {
   if (!quiet) {
     std::cout << mcslam::app::summary_text(summary);
     std::cout << "results in " << request.output_dir
-              << " (trajectory.txt, keyframes.txt, timings.csv, summary.json, config.yaml)\n";
+              << " (trajectory.txt, keyframes.txt, timings.csv, summary.json, config.yaml"
+              << (request.save_map ? ", map.ply, map.json" : "") << ")\n";
   }
   return 0;
 }
@@ -78,6 +79,11 @@ int main(int argc, char** argv) {
       ->check(CLI::NonNegativeNumber);
   run_cmd->add_flag("--sequential", sequential, "Map inline after each keyframe (deterministic)");
   run_cmd->add_flag("--threaded", threaded, "Map on its own thread (the default)");
+  run_cmd->add_flag("--save-map", run.save_map,
+                    "Also write the map: map.ply (MeshLab, CloudCompare, Open3D) and map.json");
+  run_cmd->add_option("--features", run.features,
+                      "Feature kinds to use: a comma-separated subset of points,lines,planes "
+                      "(default: the configuration's features.*, all on)");
   run_cmd->add_flag("--quiet,-q", quiet, "No progress bar and no summary");
 
   std::string gt_path, est_path;

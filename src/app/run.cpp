@@ -17,6 +17,7 @@
 #include "mcslam/io/files.hpp"
 #include "mcslam/io/sequence.hpp"
 #include "mcslam/io/trajectory_io.hpp"
+#include "mcslam/map/export.hpp"
 #include "mcslam/slam/config.hpp"
 #include "mcslam/slam/system.hpp"
 
@@ -71,6 +72,24 @@ std::string format_tum_keyframes(const Trajectory& keyframes) {
 
 }  // namespace
 
+void apply_feature_list(const std::string& list, bool& points, bool& lines, bool& planes) {
+  points = lines = planes = false;
+  std::stringstream stream(list);
+  for (std::string kind; std::getline(stream, kind, ',');) {
+    if (kind == "points")
+      points = true;
+    else if (kind == "lines")
+      lines = true;
+    else if (kind == "planes")
+      planes = true;
+    else
+      throw InputError("--features: unknown feature kind '" + kind +
+                       "' (use a comma-separated subset of points,lines,planes)");
+  }
+  if (!points && !lines && !planes)
+    throw InputError("--features: name at least one of points, lines, planes");
+}
+
 nlohmann::json run_sequence(const RunRequest& request) {
   namespace fs = std::filesystem;
   io::SequenceOptions seq_options;
@@ -80,6 +99,9 @@ nlohmann::json run_sequence(const RunRequest& request) {
     std::cerr << "mcslam: warning: " << warning << "\n";
   slam::RunConfig config = slam::resolve_run_config(request.sequence_dir, request.config_path);
   if (request.sequential) config.options.sequential = *request.sequential;
+  if (request.features)
+    apply_feature_list(*request.features, config.options.use.points, config.options.use.lines,
+                       config.options.use.planes);
   io::ensure_directory(request.output_dir);
   const fs::path out(request.output_dir);
   io::write_file_atomic((out / "config.yaml").string(), slam::to_yaml(config));
@@ -100,6 +122,7 @@ nlohmann::json run_sequence(const RunRequest& request) {
   std::vector<std::string> stage_names;
   std::map<std::string, std::vector<double>> stage_samples;
   std::vector<double> tracking_ms, load_ms;
+  std::map<std::string, std::vector<double>> counts;  // per-frame feature and inlier counts
   std::ostringstream rows;
   int lost = 0, relocalised = 0, keyframes_inserted = 0, tracked = 0;
   std::vector<std::vector<std::pair<std::string, double>>> frame_stages;
@@ -129,8 +152,17 @@ nlohmann::json run_sequence(const RunRequest& request) {
     }
     std::ostringstream prefix;
     prefix << r.frame_id << ',' << std::fixed << std::setprecision(6) << r.timestamp << ','
-           << slam::to_string(r.state) << ',' << r.features << ',' << r.matches << ',' << r.inliers
-           << ',' << (r.keyframe ? 1 : 0);
+           << slam::to_string(r.state) << ',' << r.features << ',' << r.lines << ',' << r.planes
+           << ',' << r.matches << ',' << r.inliers << ',' << r.line_matches << ',' << r.line_inliers
+           << ',' << r.plane_inliers << ',' << (r.keyframe ? 1 : 0);
+    counts["points"].push_back(r.features);
+    counts["lines"].push_back(r.lines);
+    counts["planes"].push_back(r.planes);
+    if (r.state == slam::TrackingState::kOk) {
+      counts["point_inliers"].push_back(r.inliers);
+      counts["line_inliers"].push_back(r.line_inliers);
+      counts["plane_inliers"].push_back(r.plane_inliers);
+    }
     frame_prefix.push_back(prefix.str());
     frame_stages.push_back(r.times.stages);
     bar.update(i + 1, (i + 1) / (wall.elapsed_ms() / 1000.0), lost);
@@ -145,7 +177,8 @@ nlohmann::json run_sequence(const RunRequest& request) {
   io::write_file_atomic((out / "keyframes.txt").string(),
                         format_tum_keyframes(system.keyframe_trajectory()));
   std::ostringstream csv;
-  csv << "frame,timestamp,state,features,matches,inliers,keyframe";
+  csv << "frame,timestamp,state,points,lines,planes,point_matches,point_inliers,line_matches,"
+         "line_inliers,plane_inliers,keyframe";
   for (const auto& name : stage_names) csv << ',' << name << "_ms";
   csv << ",total_ms\n";
   for (std::size_t i = 0; i < frame_prefix.size(); ++i) {
@@ -175,7 +208,23 @@ nlohmann::json run_sequence(const RunRequest& request) {
     auto lock = system.map().read_lock();
     summary["keyframes_in_map"] = system.map().num_keyframes();
     summary["points_in_map"] = system.map().num_points();
+    summary["lines_in_map"] = system.map().num_lines();
+    summary["planes_in_map"] = system.map().num_planes();
+    if (request.save_map) {
+      io::write_file_atomic((out / "map.ply").string(), map::map_to_ply(system.map()));
+      io::write_file_atomic((out / "map.json").string(),
+                            map::map_to_json(system.map()).dump(1) + "\n");
+    }
   }
+  summary["features"] = {{"points", config.options.use.points},
+                         {"lines", config.options.use.lines},
+                         {"planes", config.options.use.planes}};
+  nlohmann::json per_frame = nlohmann::json::object();
+  for (const auto& [name, samples] : counts) {
+    const SampleStats st = compute_stats(samples);
+    per_frame[name] = {{"median", st.median}, {"mean", st.mean}, {"max", st.max}};
+  }
+  summary["per_frame_counts"] = per_frame;
   summary["wall_time_s"] = wall_s;
   summary["frames_per_second"] = wall_s > 0 ? total / wall_s : 0.0;
   summary["peak_rss_mib"] = peak_rss_mib();
@@ -228,7 +277,9 @@ std::string summary_text(const nlohmann::json& s) {
   o << "frames " << s["frames"].get<int>() << ", tracked " << std::setprecision(1)
     << 100.0 * s["tracked_ratio"].get<double>() << "%, lost " << s["lost_frames"].get<int>()
     << ", relocalised " << s["relocalisations"].get<int>() << ", keyframes "
-    << s["keyframes_in_map"].get<int>() << ", points " << s["points_in_map"].get<int>() << "\n";
+    << s["keyframes_in_map"].get<int>() << "\n";
+  o << "map: " << s["points_in_map"].get<int>() << " points, " << s["lines_in_map"].get<int>()
+    << " lines, " << s["planes_in_map"].get<int>() << " planes\n";
   o << "speed " << std::setprecision(1) << s["frames_per_second"].get<double>()
     << " fps; tracking median " << std::setprecision(1)
     << s["stages"]["tracking_total"]["median_ms"].get<double>() << " ms, p95 "

@@ -1,20 +1,32 @@
 #include "mcslam/slam/frame.hpp"
 
 #include <cmath>
+#include <limits>
 
 namespace mcslam::slam {
 namespace {
 /// Relative depth difference above which two depth lookups are taken to straddle an edge.
 constexpr double kDepthConsistency = 0.03;
+
+bool rolling(const FrameMotion& motion) {
+  return motion.readout_time > 0.0 && motion.angular_velocity.norm() > 0.0;
+}
 }  // namespace
 
-FrameBuilder::FrameBuilder(const PinholeCamera& camera, const features::OrbOptions& orb,
-                           double min_depth, double max_depth)
+FrameBuilder::FrameBuilder(const PinholeCamera& camera, const SystemOptions& options)
     : camera_(camera),
-      extractor_(orb),
-      pyramid_(std::make_shared<features::ScalePyramid>(orb.num_levels, orb.scale_factor)),
-      min_depth_(min_depth),
-      max_depth_(max_depth) {}
+      use_(options.use),
+      min_depth_(options.tracker.min_depth),
+      max_depth_(options.tracker.max_depth),
+      on_plane_distance_(options.tracker.on_plane_distance),
+      orb_(options.orb),
+      pyramid_(std::make_shared<features::ScalePyramid>(options.orb.num_levels,
+                                                        options.orb.scale_factor)) {
+  if (use_.lines) lines_ = std::make_unique<features::LineExtractor>(options.lines);
+  if (use_.planes) planes_ = std::make_unique<features::PlaneExtractor>(camera, options.planes);
+}
+
+FrameBuilder::~FrameBuilder() = default;
 
 std::optional<float> FrameBuilder::depth_at(const cv::Mat& depth, double u, double v) const {
   const int x = static_cast<int>(std::lround(u));
@@ -25,18 +37,47 @@ std::optional<float> FrameBuilder::depth_at(const cv::Mat& depth, double u, doub
   return d;
 }
 
+Eigen::Matrix3d FrameBuilder::rolling_shutter_rotation(const FrameMotion& motion, double v) const {
+  // Row v was exposed (v - H/2) / H * readout after the middle row: rotate its bearing back.
+  const double tau = (v - 0.5 * camera_.height) / camera_.height * motion.readout_time;
+  return so3_exp(motion.angular_velocity * tau).toRotationMatrix().transpose();
+}
+
 Frame FrameBuilder::build(std::uint64_t id, double timestamp, const cv::Mat& gray,
-                          const cv::Mat& depth, const FrameMotion& motion) const {
+                          const cv::Mat& depth, const FrameMotion& motion,
+                          StageTimes* times) const {
+  auto result = std::make_shared<features::FrameFeatures>();
+  result->pyramid = pyramid_;
+  Stopwatch watch;
+  if (use_.points) build_points(gray, depth, motion, *result);
+  if (times) times->add("orb_extract", watch.elapsed_ms());
+  if (use_.lines) {
+    watch.restart();
+    build_lines(gray, depth, motion, *result);
+    if (times) times->add("line_extract", watch.elapsed_ms());
+  }
+  if (use_.planes) {
+    watch.restart();
+    build_planes(depth, motion, *result);
+    if (times) times->add("plane_extract", watch.elapsed_ms());
+  }
+  Frame frame;
+  frame.id = id;
+  frame.timestamp = timestamp;
+  frame.features = std::move(result);
+  return frame;
+}
+
+void FrameBuilder::build_points(const cv::Mat& gray, const cv::Mat& depth,
+                                const FrameMotion& motion, features::FrameFeatures& out) const {
   const bool compensate = motion.T_rgb_depth.has_value();
   const SE3 T_rgb_d = compensate ? *motion.T_rgb_depth : SE3();
-  const bool rolling = motion.readout_time > 0.0 && motion.angular_velocity.norm() > 0.0;
-  const double half_height = 0.5 * camera_.height;
   const SE3 T_d_rgb = T_rgb_d.inverse();
-  auto result = std::make_shared<features::FrameFeatures>();
-  features::OrbFeatures orb = extractor_.extract(gray);
-  result->points.resize(orb.keypoints.size());
+  const bool rolling_shutter = rolling(motion);
+  features::OrbFeatures orb = orb_.extract(gray);
+  out.points.resize(orb.keypoints.size());
   for (std::size_t i = 0; i < orb.keypoints.size(); ++i) {
-    features::PointFeature& p = result->points[i];
+    features::PointFeature& p = out.points[i];
     p.keypoint = orb.keypoints[i];
     p.descriptor = orb.descriptors[i];
     const Eigen::Vector2d uv = p.keypoint.uv.cast<double>();
@@ -57,12 +98,9 @@ Frame FrameBuilder::build(std::uint64_t id, double timestamp, const cv::Mat& gra
       }
       d = d_seen;
     }
-    if (rolling) {
-      // Row v was exposed (v - H/2) / H * readout after the middle row: rotate its bearing back.
-      const double tau = (uv.y() - half_height) / camera_.height * motion.readout_time;
-      const Eigen::Matrix3d R_t_tau = so3_exp(motion.angular_velocity * tau).toRotationMatrix();
-      const Eigen::Vector3d bearing = camera_.unproject(uv, d ? *d : 1.0);
-      const Eigen::Vector3d at_middle = R_t_tau.transpose() * bearing;
+    if (rolling_shutter) {
+      const Eigen::Vector3d at_middle =
+          rolling_shutter_rotation(motion, uv.y()) * camera_.unproject(uv, d ? *d : 1.0);
       if (at_middle.z() > 0.0) {
         p.keypoint.uv = camera_.project(at_middle).cast<float>();
         if (d) d = static_cast<float>(at_middle.z());
@@ -73,17 +111,66 @@ Frame FrameBuilder::build(std::uint64_t id, double timestamp, const cv::Mat& gra
       p.u_right = static_cast<float>(camera_.right_u(p.keypoint.uv.x(), *d));
     }
   }
-  if (rolling) {
+  if (rolling_shutter) {
     for (std::size_t i = 0; i < orb.keypoints.size(); ++i)
-      orb.keypoints[i] = result->points[i].keypoint;
+      orb.keypoints[i] = out.points[i].keypoint;
   }
-  result->grid = features::KeypointGrid(orb.keypoints, camera_.width, camera_.height);
-  result->pyramid = pyramid_;
-  Frame frame;
-  frame.id = id;
-  frame.timestamp = timestamp;
-  frame.features = std::move(result);
-  return frame;
+  out.grid = features::KeypointGrid(orb.keypoints, camera_.width, camera_.height);
+}
+
+void FrameBuilder::build_lines(const cv::Mat& gray, const cv::Mat& depth, const FrameMotion& motion,
+                               features::FrameFeatures& out) const {
+  out.lines = lines_->extract(gray);
+  const bool compensate = motion.T_rgb_depth.has_value();
+  const bool rolling_shutter = rolling(motion);
+  for (auto& line : out.lines) {
+    lines_->fit_depth(camera_, depth, line);
+    if (line.has_depth && compensate) {
+      // Fitted in the depth image: move the 3D segment to the colour capture time.
+      line.start_c = *motion.T_rgb_depth * line.start_c;
+      line.end_c = *motion.T_rgb_depth * line.end_c;
+      if (line.start_c.z() <= 0.0 || line.end_c.z() <= 0.0) line.has_depth = false;
+    }
+    if (!rolling_shutter) continue;
+    // Each endpoint moves with its own row's time, as keypoints do.
+    for (int k = 0; k < 2; ++k) {
+      Eigen::Vector2f& uv = k == 0 ? line.start : line.end;
+      Eigen::Vector3d& p_c = k == 0 ? line.start_c : line.end_c;
+      const Eigen::Matrix3d R = rolling_shutter_rotation(motion, uv.y());
+      const Eigen::Vector3d bearing = R * camera_.unproject(uv.cast<double>(), 1.0);
+      if (bearing.z() > 0.0) uv = camera_.project(bearing).cast<float>();
+      if (line.has_depth) p_c = R * p_c;
+    }
+  }
+}
+
+void FrameBuilder::build_planes(const cv::Mat& depth, const FrameMotion& motion,
+                                features::FrameFeatures& out) const {
+  features::PlaneExtraction extraction = planes_->extract(depth);
+  out.planes = std::move(extraction.planes);
+  if (motion.T_rgb_depth) {
+    // n' = R n, d' = d - n' . t moves a plane from the depth capture time to the colour one.
+    const SE3& T = *motion.T_rgb_depth;
+    for (auto& plane : out.planes) {
+      plane.normal = T.rotation() * plane.normal;
+      plane.d -= plane.normal.dot(T.translation());
+      plane.centroid = T * plane.centroid;
+      for (auto& h : plane.hull) h = T * h;
+    }
+  }
+  // The plane each point with depth lies on (the nearest within on_plane_distance).
+  for (auto& p : out.points) {
+    if (!p.has_depth()) continue;
+    const Eigen::Vector3d p_c = camera_.unproject(p.keypoint.uv.cast<double>(), p.depth);
+    double best = on_plane_distance_;
+    for (std::size_t k = 0; k < out.planes.size(); ++k) {
+      const double distance = std::abs(out.planes[k].distance(p_c));
+      if (distance < best) {
+        best = distance;
+        p.plane = static_cast<int>(k);
+      }
+    }
+  }
 }
 
 }  // namespace mcslam::slam

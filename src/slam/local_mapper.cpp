@@ -2,16 +2,27 @@
 
 #include <algorithm>
 #include <cmath>
+#include <opencv2/core.hpp>
 #include <unordered_set>
 
+#include "mcslam/features/lines.hpp"
 #include "mcslam/optim/bundle_adjustment.hpp"
 #include "measurement.hpp"
 
 namespace mcslam::slam {
 
 LocalMapper::LocalMapper(const PinholeCamera& camera, const MapperOptions& options,
-                         double close_depth, map::Map& map)
-    : camera_(camera), options_(options), close_depth_(close_depth), map_(map) {}
+                         const TrackerOptions& tracker_options, double close_depth, map::Map& map)
+    : camera_(camera),
+      options_(options),
+      close_depth_(close_depth),
+      map_(map),
+      tracker_options_(tracker_options) {
+  line_criteria_.max_descriptor_distance = tracker_options.line_max_descriptor_distance;
+  line_criteria_.max_angle_deg = tracker_options.line_max_angle_deg;
+  line_criteria_.max_distance = tracker_options.line_max_distance;
+  line_criteria_.min_overlap = tracker_options.line_min_overlap;
+}
 
 LocalMapper::~LocalMapper() { finish(); }
 
@@ -20,15 +31,19 @@ void LocalMapper::process(KeyFrameRequest request, StageTimes* times) {
   Stopwatch watch;
   const map::KeyFrameId id = request.id;
   insert_keyframe(request);
-  create_points(id);
+  create_points(id, request.color);
+  create_lines(id);
+  associate_planes(id);
   local.add("map_insert", watch.elapsed_ms());
   watch.restart();
   cull_recent_points(id);
+  cull_recent_lines(id);
   fuse_neighbours(id);
   local.add("map_fuse", watch.elapsed_ms());
   watch.restart();
   abort_ba_ = false;
   local_bundle_adjustment(id);
+  merge_planes();
   local.add("local_ba", watch.elapsed_ms());
   watch.restart();
   if (options_.cull_keyframes) cull_keyframes(id);
@@ -103,7 +118,9 @@ void LocalMapper::run() {
 void LocalMapper::insert_keyframe(const KeyFrameRequest& request) {
   auto lock = map_.write_lock();
   for (const auto& s : request.statistics)
-    map_.add_tracking_statistics(s.point, s.visible, s.found);
+    map_.add_tracking_statistics(s.landmark, s.visible, s.found);
+  for (const auto& s : request.line_statistics)
+    map_.add_line_statistics(s.landmark, s.visible, s.found);
   map::KeyFrame kf;
   kf.id = request.id;
   kf.frame_id = request.frame.id;
@@ -117,10 +134,39 @@ void LocalMapper::insert_keyframe(const KeyFrameRequest& request) {
     map_.add_observation(p, id, static_cast<int>(i));
     map_.update_point_appearance(p);
   }
+  const SE3 T_w_c = request.T_c_w.inverse();
+  const auto& lines = request.frame.features->lines;
+  for (std::size_t i = 0; i < request.line_landmarks.size(); ++i) {
+    const map::LineId l = request.line_landmarks[i];
+    const map::MapLine* ml = l != map::kNoId ? map_.line(l) : nullptr;
+    if (ml == nullptr) continue;
+    map_.add_line_observation(l, id, static_cast<int>(i));
+    map_.update_line_appearance(l);
+    // A longer view of the same line extends it, when its 3D fit agrees with the map line.
+    if (!lines[i].has_depth) continue;
+    const Eigen::Vector3d s_w = T_w_c * lines[i].start_c;
+    const Eigen::Vector3d e_w = T_w_c * lines[i].end_c;
+    const Eigen::Vector3d dir = ml->direction();
+    const auto off_line = [&](const Eigen::Vector3d& p) {
+      const Eigen::Vector3d v = p - ml->start_w;
+      return (v - v.dot(dir) * dir).norm();
+    };
+    const double tolerance = 0.03 + 0.01 * std::max(lines[i].start_c.z(), lines[i].end_c.z());
+    if (off_line(s_w) < tolerance && off_line(e_w) < tolerance) map_.extend_line(l, s_w, e_w);
+  }
+  const auto& planes = request.frame.features->planes;
+  for (std::size_t i = 0; i < request.plane_landmarks.size(); ++i) {
+    const map::PlaneId p = request.plane_landmarks[i];
+    if (p == map::kNoId || map_.plane(p) == nullptr) continue;
+    map_.add_plane_observation(p, id, static_cast<int>(i));
+    std::vector<Eigen::Vector3d> hull_w;
+    for (const auto& h : planes[i].hull) hull_w.push_back(T_w_c * h);
+    map_.extend_plane(p, hull_w);
+  }
   map_.update_covisibility(id);
 }
 
-void LocalMapper::create_points(map::KeyFrameId id) {
+void LocalMapper::create_points(map::KeyFrameId id, const cv::Mat& color) {
   auto lock = map_.write_lock();
   const map::KeyFrame* kf = map_.keyframe(id);
   if (kf == nullptr) return;
@@ -137,8 +183,152 @@ void LocalMapper::create_points(map::KeyFrameId id) {
     if (depth > close_depth_ && created >= options_.min_new_points) break;
     const auto& f = kf->features->points[static_cast<std::size_t>(index)];
     const Eigen::Vector3d p_w = T_w_c * camera_.unproject(f.keypoint.uv.cast<double>(), depth);
-    recent_points_.push_back(map_.add_point(p_w, id, index));
+    const map::PointId pid = map_.add_point(p_w, id, index);
+    recent_points_.push_back(pid);
+    if (color.type() == CV_8UC3) {
+      const int x = std::clamp(static_cast<int>(std::lround(f.keypoint.uv.x())), 0, color.cols - 1);
+      const int y = std::clamp(static_cast<int>(std::lround(f.keypoint.uv.y())), 0, color.rows - 1);
+      const cv::Vec3b bgr = color.at<cv::Vec3b>(y, x);
+      map_.set_point_color(pid, {bgr[2], bgr[1], bgr[0]});
+    }
     ++created;
+  }
+}
+
+void LocalMapper::create_lines(map::KeyFrameId id) {
+  auto lock = map_.write_lock();
+  const map::KeyFrame* kf = map_.keyframe(id);
+  if (kf == nullptr) return;
+  const SE3 T_w_c = kf->T_w_c();
+  const auto& lines = kf->features->lines;
+  for (std::size_t i = 0; i < lines.size(); ++i) {
+    if (!lines[i].has_depth || kf->line_landmarks[i] != map::kNoId) continue;
+    recent_lines_.push_back(
+        map_.add_line(T_w_c * lines[i].start_c, T_w_c * lines[i].end_c, id, static_cast<int>(i)));
+    kf = map_.keyframe(id);
+  }
+}
+
+void LocalMapper::associate_planes(map::KeyFrameId id) {
+  auto lock = map_.write_lock();
+  const map::KeyFrame* kf = map_.keyframe(id);
+  if (kf == nullptr) return;
+  const SE3 T_w_c = kf->T_w_c();
+  const Eigen::Matrix3d R_w_c = T_w_c.rotation();
+  const Eigen::Vector3d t_c_w = kf->T_c_w.translation();
+  const double max_angle = tracker_options_.plane_match_angle_deg * M_PI / 180.0;
+  const auto planes = kf->features->planes;
+  const auto landmarks = kf->plane_landmarks;
+  for (std::size_t i = 0; i < planes.size(); ++i) {
+    if (landmarks[i] != map::kNoId) continue;
+    // The frame plane in the world: n_w = R_w_c n_c, d_w = d_c + n_c . t_c_w.
+    const Eigen::Vector3d n_w = R_w_c * planes[i].normal;
+    const double d_w = planes[i].d + planes[i].normal.dot(t_c_w);
+    map::PlaneId best = map::kNoId;
+    double best_score = 2.0;
+    for (const auto& [pid, mp] : map_.planes()) {
+      if (mp.observations.count(id) != 0) continue;
+      const double angle = std::acos(std::clamp(mp.normal.dot(n_w), -1.0, 1.0));
+      const double distance = std::abs(mp.d - d_w);
+      if (angle > max_angle || distance > tracker_options_.plane_match_distance) continue;
+      const double score = angle / max_angle + distance / tracker_options_.plane_match_distance;
+      if (score < best_score) {
+        best_score = score;
+        best = pid;
+      }
+    }
+    std::vector<Eigen::Vector3d> hull_w;
+    for (const auto& h : planes[i].hull) hull_w.push_back(T_w_c * h);
+    if (best != map::kNoId) {
+      map_.add_plane_observation(best, id, static_cast<int>(i));
+      map_.extend_plane(best, hull_w);
+    } else {
+      map_.add_plane(Eigen::Vector4d(n_w.x(), n_w.y(), n_w.z(), d_w), hull_w, id,
+                     static_cast<int>(i));
+    }
+  }
+}
+
+void LocalMapper::cull_recent_lines(map::KeyFrameId current) {
+  auto lock = map_.write_lock();
+  std::vector<map::LineId> keep;
+  for (map::LineId id : recent_lines_) {
+    const map::MapLine* ml = map_.line(id);
+    if (ml == nullptr) continue;
+    const map::KeyFrameId age = current - std::min(current, ml->first_keyframe);
+    if (ml->found_ratio() < 0.25 || (age >= 2 && ml->observations.size() < 2))
+      map_.erase_line(id);
+    else if (age < 3)
+      keep.push_back(id);
+  }
+  recent_lines_ = std::move(keep);
+}
+
+int LocalMapper::fuse_lines_into(map::KeyFrameId target_id, const std::vector<map::LineId>& lines) {
+  const map::KeyFrame* target = map_.keyframe(target_id);
+  if (target == nullptr || target->features->lines.empty()) return 0;
+  std::vector<features::PredictedLine> predicted;
+  std::vector<map::LineId> source;
+  for (map::LineId lid : lines) {
+    const map::MapLine* ml = map_.line(lid);
+    if (ml == nullptr || ml->observations.count(target_id) != 0) continue;
+    const Eigen::Vector3d s = target->T_c_w * ml->start_w;
+    const Eigen::Vector3d e = target->T_c_w * ml->end_w;
+    if (s.z() < 0.05 || e.z() < 0.05) continue;
+    features::PredictedLine p;
+    p.start = camera_.project(s);
+    p.end = camera_.project(e);
+    p.descriptor = ml->descriptor;
+    predicted.push_back(p);
+    source.push_back(lid);
+  }
+  const auto found = features::match_lines(predicted, target->features->lines, line_criteria_);
+  int fused = 0;
+  for (const auto& m : found) {
+    target = map_.keyframe(target_id);
+    const map::LineId lid = source[static_cast<std::size_t>(m.predicted)];
+    const map::MapLine* ml = map_.line(lid);
+    if (ml == nullptr || ml->observations.count(target_id) != 0) continue;
+    const map::LineId existing = target->line_landmarks[static_cast<std::size_t>(m.observed)];
+    if (existing == lid) continue;
+    if (existing != map::kNoId) {
+      const map::MapLine* other = map_.line(existing);
+      if (other == nullptr) continue;
+      if (other->observations.size() > ml->observations.size())
+        map_.replace_line(lid, existing);
+      else
+        map_.replace_line(existing, lid);
+    } else {
+      map_.add_line_observation(lid, target_id, m.observed);
+      map_.update_line_appearance(lid);
+    }
+    ++fused;
+  }
+  return fused;
+}
+
+void LocalMapper::merge_planes() {
+  auto lock = map_.write_lock();
+  const double max_angle = options_.plane_merge_angle_deg * M_PI / 180.0;
+  std::vector<map::PlaneId> ids;
+  for (const auto& kv : map_.planes()) ids.push_back(kv.first);
+  std::sort(ids.begin(), ids.end());
+  for (std::size_t a = 0; a < ids.size(); ++a) {
+    for (std::size_t b = a + 1; b < ids.size(); ++b) {
+      const map::MapPlane* pa = map_.plane(ids[a]);
+      const map::MapPlane* pb = map_.plane(ids[b]);
+      if (pa == nullptr || pb == nullptr) continue;
+      const double angle = std::acos(std::clamp(pa->normal.dot(pb->normal), -1.0, 1.0));
+      if (angle > max_angle || std::abs(pa->d - pb->d) > options_.plane_merge_distance) continue;
+      // A keyframe that sees both as separate planes says they are not one.
+      bool seen_apart = false;
+      for (const auto& obs : pa->observations) seen_apart |= pb->observations.count(obs.first) != 0;
+      if (seen_apart) continue;
+      if (pb->observations.size() > pa->observations.size())
+        map_.replace_plane(ids[a], ids[b]);
+      else
+        map_.replace_plane(ids[b], ids[a]);
+    }
   }
 }
 
@@ -247,6 +437,19 @@ void LocalMapper::fuse_neighbours(map::KeyFrameId id) {
         if (p != map::kNoId && seen.insert(p).second) theirs.push_back(p);
   fuse_into(id, theirs);
   for (map::PointId p : own_points()) map_.update_point_appearance(p);
+  // The same for lines.
+  std::vector<map::LineId> my_lines;
+  for (map::LineId l : map_.keyframe(id)->line_landmarks)
+    if (l != map::kNoId) my_lines.push_back(l);
+  for (map::KeyFrameId t : targets) fuse_lines_into(t, my_lines);
+  std::vector<map::LineId> their_lines;
+  std::unordered_set<map::LineId> seen_lines;
+  for (map::KeyFrameId t : targets)
+    if (const map::KeyFrame* kf = map_.keyframe(t))
+      for (map::LineId l : kf->line_landmarks)
+        if (l != map::kNoId && seen_lines.insert(l).second) their_lines.push_back(l);
+  fuse_lines_into(id, their_lines);
+  for (map::KeyFrameId t : targets) map_.update_covisibility(t);
   map_.update_covisibility(id);
 }
 
@@ -321,13 +524,73 @@ void LocalMapper::bundle_adjust_keyframes(const std::vector<map::KeyFrameId>& lo
       observation_ids.emplace_back(kf_id, point_ids[k]);
     }
   }
-  if (problem.observations.empty()) return;
+  // Lines of the local keyframes, with every observation.
+  std::vector<map::LineId> line_ids;
+  std::vector<std::pair<map::KeyFrameId, map::LineId>> line_observation_ids;
+  {
+    std::unordered_set<map::LineId> seen;
+    for (map::KeyFrameId kf_id : local)
+      for (map::LineId lid : map_.keyframe(kf_id)->line_landmarks)
+        if (lid != map::kNoId && map_.line(lid) != nullptr && seen.insert(lid).second)
+          line_ids.push_back(lid);
+  }
+  for (std::size_t k = 0; k < line_ids.size(); ++k) {
+    const map::MapLine* ml = map_.line(line_ids[k]);
+    problem.lines.push_back({ml->start_w, ml->end_w});
+    for (const auto& [kf_id, index] : ml->observations) {
+      const map::KeyFrame* kf = map_.keyframe(kf_id);
+      if (kf == nullptr) continue;
+      optim::BundleAdjustmentProblem::LineObservation obs;
+      obs.pose = add_pose(kf_id, local_set.count(kf_id) == 0);
+      obs.line = static_cast<int>(k);
+      obs.measurement = line_measurement_of(kf->features->lines[static_cast<std::size_t>(index)],
+                                            tracker_options_.line_sigma);
+      problem.line_observations.push_back(obs);
+      line_observation_ids.emplace_back(kf_id, line_ids[k]);
+    }
+  }
+  // Planes seen by the local keyframes, with every observation (other keyframes fixed).
+  std::vector<map::PlaneId> plane_ids;
+  std::vector<std::pair<map::KeyFrameId, map::PlaneId>> plane_observation_ids;
+  {
+    std::unordered_set<map::PlaneId> seen;
+    for (map::KeyFrameId kf_id : local)
+      for (map::PlaneId pid : map_.keyframe(kf_id)->plane_landmarks)
+        if (pid != map::kNoId && map_.plane(pid) != nullptr && seen.insert(pid).second)
+          plane_ids.push_back(pid);
+  }
+  for (std::size_t k = 0; k < plane_ids.size(); ++k) {
+    const map::MapPlane* mp = map_.plane(plane_ids[k]);
+    problem.planes.push_back(mp->coefficients());
+    for (const auto& [kf_id, index] : mp->observations) {
+      const map::KeyFrame* kf = map_.keyframe(kf_id);
+      if (kf == nullptr) continue;
+      optim::BundleAdjustmentProblem::PlaneObservation obs;
+      obs.pose = add_pose(kf_id, local_set.count(kf_id) == 0);
+      obs.plane = static_cast<int>(k);
+      obs.measurement = plane_measurement_of(kf->features->planes[static_cast<std::size_t>(index)],
+                                             tracker_options_.plane_angle_sigma_deg,
+                                             tracker_options_.plane_distance_sigma);
+      problem.plane_observations.push_back(obs);
+      plane_observation_ids.emplace_back(kf_id, plane_ids[k]);
+    }
+  }
+  if (problem.observations.empty() && problem.line_observations.empty() &&
+      problem.plane_observations.empty())
+    return;
+  const std::vector<optim::BundleAdjustmentProblem::Line> lines_before = problem.lines;
   const auto result = optim::bundle_adjust(camera_, problem, ba_options, abort);
 
   auto lock = map_.write_lock();
   for (std::size_t k = 0; k < observation_ids.size(); ++k)
     if (!result.inlier[k])
       map_.erase_observation(observation_ids[k].second, observation_ids[k].first);
+  for (std::size_t k = 0; k < line_observation_ids.size(); ++k)
+    if (!result.line_inlier[k])
+      map_.erase_line_observation(line_observation_ids[k].second, line_observation_ids[k].first);
+  for (std::size_t k = 0; k < plane_observation_ids.size(); ++k)
+    if (!result.plane_inlier[k])
+      map_.erase_plane_observation(plane_observation_ids[k].second, plane_observation_ids[k].first);
   for (const auto& [kf_id, index] : pose_index)
     if (!problem.pose_fixed[static_cast<std::size_t>(index)])
       map_.set_keyframe_pose(kf_id, problem.poses[static_cast<std::size_t>(index)]);
@@ -336,6 +599,18 @@ void LocalMapper::bundle_adjust_keyframes(const std::vector<map::KeyFrameId>& lo
     map_.set_point_position(point_ids[k], problem.points[k]);
     map_.update_point_appearance(point_ids[k]);
   }
+  // Residual (7) fixes the infinite line, not where the endpoints sit along it (they drift):
+  // the segment keeps its extent, moved onto the optimised line.
+  for (std::size_t k = 0; k < line_ids.size(); ++k) {
+    const Eigen::Vector3d& a = problem.lines[k].start;
+    const Eigen::Vector3d& b = problem.lines[k].end;
+    if (!((b - a).norm() > 1e-9)) continue;
+    const Eigen::Vector3d dir = (b - a).normalized();
+    const auto onto = [&](const Eigen::Vector3d& p) { return a + dir * dir.dot(p - a); };
+    map_.set_line_endpoints(line_ids[k], onto(lines_before[k].start), onto(lines_before[k].end));
+  }
+  for (std::size_t k = 0; k < plane_ids.size(); ++k)
+    map_.set_plane(plane_ids[k], problem.planes[k]);
   for (map::KeyFrameId kf_id : local) map_.update_covisibility(kf_id);
 }
 

@@ -27,6 +27,22 @@ std::optional<std::string> TrackerOptions::check() const {
     return "tracker.keyframe_ref_ratio must be in (0, 1]";
   if (relocalisation_candidates < 1) return "tracker.relocalisation_candidates must be >= 1";
   if (min_initial_points < 10) return "tracker.min_initial_points must be at least 10";
+  if (min_initial_lines < 3) return "tracker.min_initial_lines must be at least 3";
+  if (plane_inlier_weight < 0) return "tracker.plane_inlier_weight must not be negative";
+  if (!(line_sigma > 0.0)) return "tracker.line_sigma must be positive";
+  if (line_max_descriptor_distance < 1 || line_max_descriptor_distance > 256)
+    return "tracker.line_max_descriptor_distance must be in [1, 256]";
+  if (!(line_max_angle_deg > 0.0 && line_max_angle_deg < 90.0))
+    return "tracker.line_max_angle_deg must be in (0, 90)";
+  if (!(line_max_distance > 0.0)) return "tracker.line_max_distance must be positive";
+  if (!(line_min_overlap >= 0.0 && line_min_overlap <= 1.0))
+    return "tracker.line_min_overlap must be in [0, 1]";
+  if (!(plane_angle_sigma_deg > 0.0)) return "tracker.plane_angle_sigma_deg must be positive";
+  if (!(plane_distance_sigma > 0.0)) return "tracker.plane_distance_sigma must be positive";
+  if (!(plane_match_angle_deg > 0.0 && plane_match_angle_deg < 90.0))
+    return "tracker.plane_match_angle_deg must be in (0, 90)";
+  if (!(plane_match_distance > 0.0)) return "tracker.plane_match_distance must be positive";
+  if (!(on_plane_distance > 0.0)) return "tracker.on_plane_distance must be positive";
   return pose.check();
 }
 
@@ -42,11 +58,18 @@ std::optional<std::string> MapperOptions::check() const {
   if (min_covisibility_weight < 1) return "mapper.min_covisibility_weight must be at least 1";
   if (!(redundant_ratio > 0.0 && redundant_ratio <= 1.0))
     return "mapper.redundant_ratio must be in (0, 1]";
+  if (!(plane_merge_angle_deg > 0.0 && plane_merge_angle_deg < 90.0))
+    return "mapper.plane_merge_angle_deg must be in (0, 90)";
+  if (!(plane_merge_distance > 0.0)) return "mapper.plane_merge_distance must be positive";
   return ba.check();
 }
 
 std::optional<std::string> SystemOptions::check() const {
+  if (!use.points && !use.lines && !use.planes)
+    return "features.points, features.lines and features.planes are all off";
   if (auto e = orb.check()) return e;
+  if (auto e = lines.check()) return e;
+  if (auto e = planes.check()) return e;
   if (auto e = tracker.check()) return e;
   return mapper.check();
 }

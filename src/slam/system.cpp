@@ -14,12 +14,12 @@ System::System(const PinholeCamera& camera, const SystemOptions& options)
   if (auto e = camera.check()) throw InputError("camera: " + *e);
   if (auto e = options.check()) throw InputError("options: " + *e);
   undistorter_ = std::make_unique<io::Undistorter>(camera_);
-  builder_ = std::make_unique<FrameBuilder>(camera_, options_.orb, options_.tracker.min_depth,
-                                            options_.tracker.max_depth);
+  builder_ = std::make_unique<FrameBuilder>(camera_, options_);
   map_ = std::make_unique<map::Map>();
   tracker_ = std::make_unique<Tracker>(camera_, options_.tracker, *map_);
   const double close_depth = options_.tracker.close_depth_factor * camera_.bf / camera_.fx;
-  mapper_ = std::make_unique<LocalMapper>(camera_, options_.mapper, close_depth, *map_);
+  mapper_ =
+      std::make_unique<LocalMapper>(camera_, options_.mapper, options_.tracker, close_depth, *map_);
   if (!options_.sequential) mapper_->start();
 }
 
@@ -62,9 +62,11 @@ FrameResult System::process(const cv::Mat& rgb, const cv::Mat& depth, double tim
     motion.readout_time = camera_.readout_time;
     motion.angular_velocity = tracker_->angular_velocity();
   }
-  const Frame frame = builder_->build(result.frame_id, timestamp, gray, undistorted_depth, motion);
+  const Frame frame =
+      builder_->build(result.frame_id, timestamp, gray, undistorted_depth, motion, &result.times);
   result.features = static_cast<int>(frame.features->points.size());
-  result.times.add("orb_extract", watch.elapsed_ms());
+  result.lines = static_cast<int>(frame.features->lines.size());
+  result.planes = static_cast<int>(frame.features->planes.size());
 
   const bool sequential = options_.sequential;
   TrackingOutcome outcome = tracker_->track(frame, sequential || mapper_->idle(),
@@ -73,6 +75,9 @@ FrameResult System::process(const cv::Mat& rgb, const cv::Mat& depth, double tim
   result.relocalised = outcome.relocalised;
   result.matches = outcome.matches;
   result.inliers = outcome.inliers;
+  result.line_matches = outcome.line_matches;
+  result.line_inliers = outcome.line_inliers;
+  result.plane_inliers = outcome.plane_inliers;
   if (outcome.state == TrackingState::kOk) {
     result.T_w_c = outcome.T_c_w.inverse();
     record.tracked = true;
@@ -82,6 +87,8 @@ FrameResult System::process(const cv::Mat& rgb, const cv::Mat& depth, double tim
   }
   if (outcome.keyframe) {
     result.keyframe = true;
+    // New points take their colour from the keyframe's image (for the saved map).
+    if (rgb.channels() == 3) outcome.keyframe->color = undistorter_->apply_rgb(rgb);
     if (sequential) {
       StageTimes mapper_times;
       mapper_->process(std::move(*outcome.keyframe), &mapper_times);

@@ -8,6 +8,7 @@
 #include <opencv2/calib3d.hpp>
 #include <unordered_set>
 
+#include "mcslam/features/lines.hpp"
 #include "mcslam/features/matching.hpp"
 #include "mcslam/optim/pose_optimizer.hpp"
 #include "measurement.hpp"
@@ -61,7 +62,64 @@ class RotationHistogram {
   std::array<std::vector<int>, kRotationBins> bins_;
 };
 
+/// A 3D segment (world) projected with T_c_w; nullopt when an endpoint is behind the camera or
+/// the segment lies entirely outside the image.
+std::optional<features::PredictedLine> project_segment(const PinholeCamera& camera,
+                                                       const SE3& T_c_w,
+                                                       const Eigen::Vector3d& start_w,
+                                                       const Eigen::Vector3d& end_w) {
+  const Eigen::Vector3d s = T_c_w * start_w;
+  const Eigen::Vector3d e = T_c_w * end_w;
+  constexpr double kMinZ = 0.05;
+  if (s.z() < kMinZ || e.z() < kMinZ) return std::nullopt;
+  features::PredictedLine line;
+  line.start = camera.project(s);
+  line.end = camera.project(e);
+  if (!camera.in_image(line.start) && !camera.in_image(line.end) &&
+      !camera.in_image(0.5 * (line.start + line.end)))
+    return std::nullopt;
+  return line;
+}
+
 }  // namespace
+
+Tracker::Associations::Associations(const Frame& frame)
+    : points(frame.features->points.size()),
+      lines(frame.features->lines.size()),
+      planes(frame.features->planes.size()) {}
+
+void Tracker::Associations::clear() {
+  std::fill(points.begin(), points.end(), Match{});
+  std::fill(lines.begin(), lines.end(), LineMatch{});
+  std::fill(planes.begin(), planes.end(), PlaneMatch{});
+}
+
+int Tracker::Associations::active_points() const {
+  return static_cast<int>(
+      std::count_if(points.begin(), points.end(), [](const Match& m) { return m.active; }));
+}
+
+int Tracker::Associations::active_lines() const {
+  return static_cast<int>(
+      std::count_if(lines.begin(), lines.end(), [](const LineMatch& m) { return m.active; }));
+}
+
+int Tracker::Associations::inlier_points(bool landmarks_only) const {
+  return static_cast<int>(std::count_if(points.begin(), points.end(), [&](const Match& m) {
+    return m.active && !m.outlier && (!landmarks_only || m.landmark != map::kNoId);
+  }));
+}
+
+int Tracker::Associations::inlier_lines(bool landmarks_only) const {
+  return static_cast<int>(std::count_if(lines.begin(), lines.end(), [&](const LineMatch& m) {
+    return m.active && !m.outlier && (!landmarks_only || m.landmark != map::kNoId);
+  }));
+}
+
+int Tracker::Associations::inlier_planes() const {
+  return static_cast<int>(std::count_if(
+      planes.begin(), planes.end(), [](const PlaneMatch& m) { return m.active && !m.outlier; }));
+}
 
 const char* to_string(TrackingState state) {
   switch (state) {
@@ -87,7 +145,7 @@ TrackingOutcome Tracker::track(const Frame& frame, bool mapper_idle, std::size_t
     return out;
   }
 
-  std::vector<Match> matches(frame.features->points.size());
+  Associations assoc(frame);
   SE3 T_c_w;
   bool ok = false;
   bool relocalised = false;
@@ -95,19 +153,19 @@ TrackingOutcome Tracker::track(const Frame& frame, bool mapper_idle, std::size_t
     const std::optional<SE3> T_last = last_frame_pose();
     if (T_last) {
       const SE3 prediction = velocity_ ? (*velocity_) * (*T_last) : *T_last;
-      ok = track_last_frame(frame, prediction, matches, T_c_w);
+      ok = track_last_frame(frame, prediction, assoc, T_c_w);
       // A sudden motion breaks the constant-velocity model: retry from the last pose.
       if (!ok && velocity_) {
-        std::fill(matches.begin(), matches.end(), Match{});
-        ok = track_last_frame(frame, *T_last, matches, T_c_w);
+        assoc.clear();
+        ok = track_last_frame(frame, *T_last, assoc, T_c_w);
       }
     }
     if (!ok) {
-      std::fill(matches.begin(), matches.end(), Match{});
-      ok = track_reference_keyframe(frame, matches, T_c_w);
+      assoc.clear();
+      ok = track_reference_keyframe(frame, assoc, T_c_w);
     }
   } else {
-    ok = relocalise(frame, matches, T_c_w);
+    ok = relocalise(frame, assoc, T_c_w);
     relocalised = ok;
     if (ok) last_relocalisation_frame_ = frame.id;
   }
@@ -117,20 +175,25 @@ TrackingOutcome Tracker::track(const Frame& frame, bool mapper_idle, std::size_t
   int inliers = 0;
   if (ok) {
     const bool recent_reloc = frame.id < last_relocalisation_frame_ + 2;
-    inliers = track_local_map(frame, matches, T_c_w,
-                              recent_reloc ? 5.0 : options_.local_map_search_radius);
+    inliers =
+        track_local_map(frame, assoc, T_c_w, recent_reloc ? 5.0 : options_.local_map_search_radius);
     const int needed = frame.id < last_relocalisation_frame_ + options_.max_frames_between_keyframes
                            ? options_.min_relocalisation_inliers
                            : options_.min_local_map_inliers;
     ok = inliers >=
          (relocalised || last_relocalisation_frame_ > 0 ? needed : options_.min_local_map_inliers);
+    // Planes help but never carry tracking alone: with a blank colour image the frame is lost.
+    ok = ok && assoc.inlier_points(false) + assoc.inlier_lines(false) >= options_.min_pose_inliers;
   }
   if (times) times->add("track_local_map", watch.elapsed_ms());
 
   TrackingOutcome out;
   out.relocalised = relocalised && ok;
-  out.inliers = inliers;
-  for (const Match& m : matches) out.matches += m.active ? 1 : 0;
+  out.matches = assoc.active_points();
+  out.inliers = assoc.inlier_points(false);
+  out.line_matches = assoc.active_lines();
+  out.line_inliers = assoc.inlier_lines(false);
+  out.plane_inliers = assoc.inlier_planes();
   if (!ok) {
     state_ = TrackingState::kLost;
     velocity_.reset();
@@ -149,16 +212,11 @@ TrackingOutcome Tracker::track(const Frame& frame, bool mapper_idle, std::size_t
   out.state = state_;
   out.T_c_w = T_c_w;
   out.reference = reference_;
-  // The keyframe decision counts landmarks only (matches to the last frame's depth points say
-  // nothing about how well the map covers the view).
-  int landmark_inliers = 0;
-  for (const Match& m : matches)
-    landmark_inliers += m.active && !m.outlier && m.landmark != map::kNoId ? 1 : 0;
-  if (need_keyframe(frame, matches, landmark_inliers, mapper_idle, mapper_queue)) {
-    out.keyframe = make_keyframe(frame, matches, T_c_w);
+  if (need_keyframe(frame, assoc, mapper_idle, mapper_queue)) {
+    out.keyframe = make_keyframe(frame, assoc, T_c_w);
     out.reference = out.keyframe->id;
   }
-  remember_last_frame(frame, matches, T_c_w, out.reference);
+  remember_last_frame(frame, assoc, T_c_w, out.reference);
   out.T_c_ref = last_->T_c_ref;
   if (times) times->add("keyframe_decision", watch.elapsed_ms());
   return out;
@@ -168,18 +226,24 @@ TrackingOutcome Tracker::initialize(const Frame& frame) {
   TrackingOutcome out;
   int with_depth = 0;
   for (const auto& p : frame.features->points) with_depth += p.has_depth() ? 1 : 0;
-  if (with_depth < options_.min_initial_points) {
+  int lines_with_depth = 0;
+  for (const auto& l : frame.features->lines) lines_with_depth += l.has_depth ? 1 : 0;
+  // Points alone, or enough 3D segments. Planes alone do not start a map: they come from the
+  // depth image only, and a map without image landmarks could never relocalise.
+  const bool enough_points = with_depth >= options_.min_initial_points;
+  const bool enough_structure = lines_with_depth >= options_.min_initial_lines;
+  if (!enough_points && !enough_structure) {
     out.state = TrackingState::kNotInitialized;
     return out;
   }
   state_ = TrackingState::kOk;
-  std::vector<Match> none(frame.features->points.size());
+  const Associations none(frame);
   out.state = state_;
   out.T_c_w = SE3();
   out.keyframe = make_keyframe(frame, none, SE3());
   out.reference = out.keyframe->id;
-  out.matches = 0;
   out.inliers = with_depth;
+  out.line_inliers = lines_with_depth;
   remember_last_frame(frame, none, SE3(), out.reference);
   out.T_c_ref = SE3();
   return out;
@@ -287,20 +351,120 @@ int Tracker::search_last_frame(const Frame& frame, const SE3& T_c_w, double radi
   return count;
 }
 
-bool Tracker::track_last_frame(const Frame& frame, const SE3& prediction,
-                               std::vector<Match>& matches, SE3& T_c_w) {
-  int n = search_last_frame(frame, prediction, options_.motion_search_radius, matches);
-  if (n < options_.min_motion_matches) {
-    std::fill(matches.begin(), matches.end(), Match{});
-    n = search_last_frame(frame, prediction, 2.0 * options_.motion_search_radius, matches);
-  }
-  if (n < options_.min_motion_matches) return false;
-  T_c_w = prediction;
-  return optimize(frame, matches, T_c_w) >= options_.min_pose_inliers;
+features::LineMatchCriteria Tracker::line_criteria(double distance_factor) const {
+  features::LineMatchCriteria c;
+  c.max_descriptor_distance = options_.line_max_descriptor_distance;
+  c.max_angle_deg = options_.line_max_angle_deg;
+  c.max_distance = options_.line_max_distance * distance_factor;
+  c.min_overlap = options_.line_min_overlap;
+  return c;
 }
 
-bool Tracker::track_reference_keyframe(const Frame& frame, std::vector<Match>& matches,
-                                       SE3& T_c_w) {
+int Tracker::search_last_lines(const Frame& frame, const SE3& T_c_w, double distance_factor,
+                               std::vector<LineMatch>& matches) const {
+  const auto& last_lines = last_->frame.features->lines;
+  if (last_lines.empty() || frame.features->lines.empty()) return 0;
+  // World endpoints of the last frame's segments: their map line, or their own 3D fit.
+  const SE3 T_w_last = last_->T_c_w.inverse();
+  std::vector<features::PredictedLine> predicted;
+  std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>> world;
+  std::vector<map::LineId> landmark;
+  {
+    auto lock = map_.read_lock();
+    for (std::size_t i = 0; i < last_lines.size(); ++i) {
+      std::pair<Eigen::Vector3d, Eigen::Vector3d> w;
+      map::LineId id = last_->line_landmarks[i];
+      if (const map::MapLine* ml = id != map::kNoId ? map_.line(id) : nullptr) {
+        w = {ml->start_w, ml->end_w};
+      } else if (last_->line_has_depth[i]) {
+        id = map::kNoId;
+        w = {T_w_last * last_lines[i].start_c, T_w_last * last_lines[i].end_c};
+      } else {
+        continue;
+      }
+      auto line = project_segment(camera_, T_c_w, w.first, w.second);
+      if (!line) continue;
+      line->descriptor = last_lines[i].descriptor;
+      predicted.push_back(*line);
+      world.push_back(w);
+      landmark.push_back(id);
+    }
+  }
+  const auto found =
+      features::match_lines(predicted, frame.features->lines, line_criteria(distance_factor));
+  for (const auto& m : found) {
+    LineMatch& match = matches[static_cast<std::size_t>(m.observed)];
+    const auto k = static_cast<std::size_t>(m.predicted);
+    match.landmark = landmark[k];
+    match.start_w = world[k].first;
+    match.end_w = world[k].second;
+    match.active = true;
+    match.outlier = false;
+  }
+  return static_cast<int>(found.size());
+}
+
+int Tracker::search_planes(const Frame& frame, const SE3& T_c_w,
+                           std::vector<PlaneMatch>& matches) const {
+  const auto& planes = frame.features->planes;
+  if (planes.empty() || map_.num_planes() == 0) return 0;
+  const double max_angle = options_.plane_match_angle_deg * M_PI / 180.0;
+  const Eigen::Matrix3d R = T_c_w.rotation();
+  const Eigen::Vector3d t = T_c_w.translation();
+  // Every (frame plane, map plane) pair within the thresholds, best first; each used once.
+  struct Candidate {
+    double score;
+    std::size_t frame_plane;
+    map::PlaneId landmark;
+  };
+  std::vector<Candidate> candidates;
+  for (const auto& [id, mp] : map_.planes()) {
+    const Eigen::Vector3d n_c = R * mp.normal;
+    const double d_c = mp.d - n_c.dot(t);
+    for (std::size_t k = 0; k < planes.size(); ++k) {
+      const double angle = std::acos(std::clamp(n_c.dot(planes[k].normal), -1.0, 1.0));
+      const double distance = std::abs(d_c - planes[k].d);
+      if (angle > max_angle || distance > options_.plane_match_distance) continue;
+      candidates.push_back({angle / max_angle + distance / options_.plane_match_distance, k, id});
+    }
+  }
+  std::sort(candidates.begin(), candidates.end(), [](const Candidate& a, const Candidate& b) {
+    return a.score != b.score ? a.score < b.score : a.landmark < b.landmark;
+  });
+  std::unordered_set<map::PlaneId> used;
+  for (auto& m : matches) m = PlaneMatch{};
+  int count = 0;
+  for (const Candidate& c : candidates) {
+    if (matches[c.frame_plane].active || used.count(c.landmark) != 0) continue;
+    const map::MapPlane* mp = map_.plane(c.landmark);
+    matches[c.frame_plane] = PlaneMatch{c.landmark, mp->coefficients(), true, false};
+    used.insert(c.landmark);
+    ++count;
+  }
+  return count;
+}
+
+bool Tracker::track_last_frame(const Frame& frame, const SE3& prediction, Associations& assoc,
+                               SE3& T_c_w) {
+  int n = search_last_frame(frame, prediction, options_.motion_search_radius, assoc.points);
+  int n_lines = search_last_lines(frame, prediction, 1.0, assoc.lines);
+  if (n + n_lines < options_.min_motion_matches) {
+    assoc.clear();
+    n = search_last_frame(frame, prediction, 2.0 * options_.motion_search_radius, assoc.points);
+    n_lines = search_last_lines(frame, prediction, 2.0, assoc.lines);
+  }
+  int n_planes = 0;
+  {
+    auto lock = map_.read_lock();
+    n_planes = search_planes(frame, prediction, assoc.planes);
+  }
+  if (n + n_lines + options_.plane_inlier_weight * n_planes < options_.min_motion_matches)
+    return false;
+  T_c_w = prediction;
+  return optimize(frame, assoc, T_c_w) >= options_.min_pose_inliers;
+}
+
+bool Tracker::track_reference_keyframe(const Frame& frame, Associations& assoc, SE3& T_c_w) {
   const std::optional<SE3> T_last = last_frame_pose();
   if (!T_last) return false;
   auto lock = map_.read_lock();
@@ -318,69 +482,125 @@ bool Tracker::track_reference_keyframe(const Frame& frame, std::vector<Match>& m
   for (const auto& p : frame.features->points) query.push_back(p.descriptor);
   const auto found =
       features::match_descriptors(query, train, options_.max_descriptor_distance, 0.7f, true);
-  if (static_cast<int>(found.size()) < options_.min_motion_matches) return false;
   for (const auto& m : found) {
     const map::PointId id =
         ref->landmarks[static_cast<std::size_t>(train_index[static_cast<std::size_t>(m.train)])];
-    Match& match = matches[static_cast<std::size_t>(m.query)];
+    Match& match = assoc.points[static_cast<std::size_t>(m.query)];
     match.landmark = id;
     match.p_w = map_.point(id)->p_w;
     match.active = true;
   }
-  lock.unlock();
-  T_c_w = *T_last;
-  return optimize(frame, matches, T_c_w) >= options_.min_pose_inliers;
-}
-
-int Tracker::optimize(const Frame& frame, std::vector<Match>& matches, SE3& T_c_w) const {
-  std::vector<optim::PoseObservation> observations;
-  std::vector<std::size_t> index;
-  const auto& pyramid = *frame.features->pyramid;
-  for (std::size_t i = 0; i < matches.size(); ++i) {
-    if (!matches[i].active) continue;
-    optim::PoseObservation obs;
-    obs.p_w = matches[i].p_w;
-    obs.measurement = measurement_of(frame.features->points[i], pyramid, options_.depth_weight);
-    observations.push_back(obs);
-    index.push_back(i);
+  // The reference keyframe's map lines, predicted at the last pose with a wide window.
+  std::vector<features::PredictedLine> predicted;
+  std::vector<const map::MapLine*> predicted_lines;
+  for (map::LineId id : ref->line_landmarks) {
+    const map::MapLine* ml = id != map::kNoId ? map_.line(id) : nullptr;
+    if (ml == nullptr) continue;
+    auto line = project_segment(camera_, *T_last, ml->start_w, ml->end_w);
+    if (!line) continue;
+    line->descriptor = ml->descriptor;
+    predicted.push_back(*line);
+    predicted_lines.push_back(ml);
   }
-  if (observations.size() < 3) return 0;
-  const auto result = optim::optimize_pose(camera_, T_c_w, observations, options_.pose);
-  T_c_w = result.T_c_w;
-  for (std::size_t k = 0; k < index.size(); ++k) matches[index[k]].outlier = !result.inlier[k];
-  return result.num_inliers;
+  const auto line_found =
+      features::match_lines(predicted, frame.features->lines, line_criteria(4.0));
+  for (const auto& m : line_found) {
+    const map::MapLine* ml = predicted_lines[static_cast<std::size_t>(m.predicted)];
+    assoc.lines[static_cast<std::size_t>(m.observed)] =
+        LineMatch{ml->id, ml->start_w, ml->end_w, true, false};
+  }
+  const int n_planes = search_planes(frame, *T_last, assoc.planes);
+  lock.unlock();
+  const int n = static_cast<int>(found.size() + line_found.size());
+  if (n + options_.plane_inlier_weight * n_planes < options_.min_motion_matches) return false;
+  T_c_w = *T_last;
+  return optimize(frame, assoc, T_c_w) >= options_.min_pose_inliers;
 }
 
-void Tracker::update_local_map(const std::vector<Match>& matches, const SE3& T_c_w) {
+int Tracker::weighted_inliers(const Associations& assoc) const {
+  return assoc.inlier_points(false) + assoc.inlier_lines(false) +
+         options_.plane_inlier_weight * assoc.inlier_planes();
+}
+
+int Tracker::optimize(const Frame& frame, Associations& assoc, SE3& T_c_w) const {
+  optim::PoseProblem problem;
+  std::vector<std::size_t> point_index, line_index, plane_index;
+  const auto& features = *frame.features;
+  for (std::size_t i = 0; i < assoc.points.size(); ++i) {
+    if (!assoc.points[i].active) continue;
+    optim::PoseObservation obs;
+    obs.p_w = assoc.points[i].p_w;
+    obs.measurement = measurement_of(features.points[i], *features.pyramid, options_.depth_weight);
+    problem.points.push_back(obs);
+    point_index.push_back(i);
+  }
+  for (std::size_t i = 0; i < assoc.lines.size(); ++i) {
+    if (!assoc.lines[i].active) continue;
+    optim::PoseLineObservation obs;
+    obs.start_w = assoc.lines[i].start_w;
+    obs.end_w = assoc.lines[i].end_w;
+    obs.measurement = line_measurement_of(features.lines[i], options_.line_sigma);
+    problem.lines.push_back(obs);
+    line_index.push_back(i);
+  }
+  for (std::size_t i = 0; i < assoc.planes.size(); ++i) {
+    if (!assoc.planes[i].active) continue;
+    optim::PosePlaneObservation obs;
+    obs.plane_w = assoc.planes[i].plane_w;
+    obs.measurement = plane_measurement_of(features.planes[i], options_.plane_angle_sigma_deg,
+                                           options_.plane_distance_sigma);
+    problem.planes.push_back(obs);
+    plane_index.push_back(i);
+  }
+  if (problem.points.size() + problem.lines.size() + 3 * problem.planes.size() < 3) return 0;
+  const auto result = optim::optimize_pose(camera_, T_c_w, problem, options_.pose);
+  T_c_w = result.T_c_w;
+  for (std::size_t k = 0; k < point_index.size(); ++k)
+    assoc.points[point_index[k]].outlier = !result.inlier[k];
+  for (std::size_t k = 0; k < line_index.size(); ++k)
+    assoc.lines[line_index[k]].outlier = !result.line_inlier[k];
+  for (std::size_t k = 0; k < plane_index.size(); ++k)
+    assoc.planes[plane_index[k]].outlier = !result.plane_inlier[k];
+  return weighted_inliers(assoc);
+}
+
+void Tracker::update_local_map(const Associations& assoc, const SE3& T_c_w) {
   // Keyframes that observe the frame's landmarks, weighted by how many they share.
   std::unordered_map<map::KeyFrameId, int> counts;
-  for (const Match& m : matches) {
+  for (const Match& m : assoc.points) {
     if (!m.active || m.outlier || m.landmark == map::kNoId) continue;
     const map::MapPoint* mp = map_.point(m.landmark);
     if (mp == nullptr) continue;
     for (const auto& obs : mp->observations) ++counts[obs.first];
   }
+  for (const LineMatch& m : assoc.lines) {
+    if (!m.active || m.outlier || m.landmark == map::kNoId) continue;
+    const map::MapLine* ml = map_.line(m.landmark);
+    if (ml == nullptr) continue;
+    for (const auto& obs : ml->observations) ++counts[obs.first];
+  }
+  std::vector<map::KeyFrameId>& local_keyframes = local_.keyframes;
   std::vector<std::pair<int, map::KeyFrameId>> ranked;
   for (const auto& [id, n] : counts) ranked.emplace_back(n, id);
   std::sort(ranked.begin(), ranked.end(), [](const auto& a, const auto& b) {
     return a.first != b.first ? a.first > b.first : a.second > b.second;
   });
-  local_keyframes_.clear();
+  local_keyframes.clear();
   std::unordered_set<map::KeyFrameId> chosen;
   const auto max_kf = static_cast<std::size_t>(options_.max_local_keyframes);
   for (const auto& [n, id] : ranked) {
-    if (local_keyframes_.size() >= max_kf) break;
-    local_keyframes_.push_back(id);
+    if (local_keyframes.size() >= max_kf) break;
+    local_keyframes.push_back(id);
     chosen.insert(id);
   }
   if (!ranked.empty()) reference_ = ranked.front().second;
   // Neighbours of the best ones, so that the local map reaches ahead of the camera.
-  const std::size_t first_level = local_keyframes_.size();
-  for (std::size_t k = 0; k < first_level && local_keyframes_.size() < max_kf; ++k)
-    for (map::KeyFrameId n : map_.best_covisible(local_keyframes_[k], 10))
+  const std::size_t first_level = local_keyframes.size();
+  for (std::size_t k = 0; k < first_level && local_keyframes.size() < max_kf; ++k)
+    for (map::KeyFrameId n : map_.best_covisible(local_keyframes[k], 10))
       if (chosen.insert(n).second) {
-        local_keyframes_.push_back(n);
-        if (local_keyframes_.size() >= max_kf) break;
+        local_keyframes.push_back(n);
+        if (local_keyframes.size() >= max_kf) break;
       }
   // Keyframes near the camera that look the same way, linked by covisibility or not: when the
   // camera comes back to a place, the old landmarks are matched again instead of being mapped a
@@ -402,23 +622,27 @@ void Tracker::update_local_map(const std::vector<Match>& matches, const SE3& T_c
     std::sort(nearby.begin(), nearby.end());
     const auto n = std::min(nearby.size(), static_cast<std::size_t>(options_.spatial_keyframes));
     for (std::size_t k = 0; k < n; ++k) {
-      local_keyframes_.push_back(nearby[k].second);
+      local_keyframes.push_back(nearby[k].second);
       chosen.insert(nearby[k].second);
     }
   }
-  if (local_keyframes_.empty() && map_.last_keyframe_id() != map::kNoId &&
+  if (local_keyframes.empty() && map_.last_keyframe_id() != map::kNoId &&
       map_.keyframe(map_.last_keyframe_id()) != nullptr) {
-    local_keyframes_.push_back(map_.last_keyframe_id());
+    local_keyframes.push_back(map_.last_keyframe_id());
     reference_ = map_.last_keyframe_id();
   }
   // Their landmarks, each once.
-  local_points_.clear();
+  local_.points.clear();
+  local_.lines.clear();
   std::unordered_set<map::PointId> seen;
-  for (map::KeyFrameId id : local_keyframes_) {
+  std::unordered_set<map::LineId> seen_lines;
+  for (map::KeyFrameId id : local_keyframes) {
     const map::KeyFrame* kf = map_.keyframe(id);
     if (kf == nullptr) continue;
     for (map::PointId p : kf->landmarks)
-      if (p != map::kNoId && seen.insert(p).second) local_points_.push_back(p);
+      if (p != map::kNoId && seen.insert(p).second) local_.points.push_back(p);
+    for (map::LineId l : kf->line_landmarks)
+      if (l != map::kNoId && seen_lines.insert(l).second) local_.lines.push_back(l);
   }
 }
 
@@ -432,7 +656,7 @@ int Tracker::search_local_points(const Frame& frame, const SE3& T_c_w, double ra
   const Eigen::Vector3d center = T_c_w.inverse().translation();
   std::vector<int> candidates;
   int added = 0;
-  for (map::PointId id : local_points_) {
+  for (map::PointId id : local_.points) {
     if (already.count(id) != 0) continue;
     const map::MapPoint* mp = map_.point(id);
     if (mp == nullptr) continue;
@@ -446,7 +670,7 @@ int Tracker::search_local_points(const Frame& frame, const SE3& T_c_w, double ra
     const double view_cos = ray.dot(mp->normal) / distance;
     if (view_cos < 0.5) continue;
     auto& stat = statistics_[id];
-    stat.point = id;
+    stat.landmark = id;
     ++stat.visible;
     const int level = pyramid.predict_level(distance, mp->max_distance);
     const double r = (view_cos > 0.998 ? 2.5 : 4.0) * radius_factor *
@@ -484,12 +708,50 @@ int Tracker::search_local_points(const Frame& frame, const SE3& T_c_w, double ra
   return added;
 }
 
-int Tracker::track_local_map(const Frame& frame, std::vector<Match>& matches, SE3& T_c_w,
+int Tracker::search_local_lines(const Frame& frame, const SE3& T_c_w,
+                                std::vector<LineMatch>& matches) {
+  if (frame.features->lines.empty()) return 0;
+  std::unordered_set<map::LineId> already;
+  for (const LineMatch& m : matches)
+    if (m.active && m.landmark != map::kNoId) already.insert(m.landmark);
+  std::vector<features::PredictedLine> predicted;
+  std::vector<const map::MapLine*> source;
+  for (map::LineId id : local_.lines) {
+    if (already.count(id) != 0) continue;
+    const map::MapLine* ml = map_.line(id);
+    if (ml == nullptr) continue;
+    auto line = project_segment(camera_, T_c_w, ml->start_w, ml->end_w);
+    if (!line) continue;
+    auto& stat = line_statistics_[id];
+    stat.landmark = id;
+    ++stat.visible;
+    line->descriptor = ml->descriptor;
+    predicted.push_back(*line);
+    source.push_back(ml);
+  }
+  // Segments already matched to a map line keep it; the others may take a local-map line.
+  std::vector<features::LineFeature> free_lines;
+  std::vector<std::size_t> free_index;
+  for (std::size_t i = 0; i < matches.size(); ++i) {
+    if (matches[i].active && matches[i].landmark != map::kNoId) continue;
+    free_lines.push_back(frame.features->lines[i]);
+    free_index.push_back(i);
+  }
+  const auto found = features::match_lines(predicted, free_lines, line_criteria(1.0));
+  for (const auto& m : found) {
+    const map::MapLine* ml = source[static_cast<std::size_t>(m.predicted)];
+    matches[free_index[static_cast<std::size_t>(m.observed)]] =
+        LineMatch{ml->id, ml->start_w, ml->end_w, true, false};
+  }
+  return static_cast<int>(found.size());
+}
+
+int Tracker::track_local_map(const Frame& frame, Associations& assoc, SE3& T_c_w,
                              double radius_factor) {
   {
     auto lock = map_.read_lock();
     // Drop outliers of the frame-to-frame step and landmarks the mapper has culled since.
-    for (Match& m : matches) {
+    for (Match& m : assoc.points) {
       if (m.active && m.outlier) m = Match{};
       if (m.active && m.landmark != map::kNoId) {
         if (const map::MapPoint* mp = map_.point(m.landmark))
@@ -498,20 +760,39 @@ int Tracker::track_local_map(const Frame& frame, std::vector<Match>& matches, SE
           m.landmark = map::kNoId;
       }
     }
-    update_local_map(matches, T_c_w);
-    search_local_points(frame, T_c_w, radius_factor, matches);
+    for (LineMatch& m : assoc.lines) {
+      if (m.active && m.outlier) m = LineMatch{};
+      if (m.active && m.landmark != map::kNoId) {
+        if (const map::MapLine* ml = map_.line(m.landmark)) {
+          m.start_w = ml->start_w;
+          m.end_w = ml->end_w;
+        } else {
+          m = LineMatch{};  // its geometry came from the map: nothing is left to use
+        }
+      }
+    }
+    update_local_map(assoc, T_c_w);
+    search_local_points(frame, T_c_w, radius_factor, assoc.points);
+    search_local_lines(frame, T_c_w, assoc.lines);
+    search_planes(frame, T_c_w, assoc.planes);
   }
-  const int inliers = optimize(frame, matches, T_c_w);
-  for (const Match& m : matches)
+  const int inliers = optimize(frame, assoc, T_c_w);
+  for (const Match& m : assoc.points)
     if (m.active && !m.outlier && m.landmark != map::kNoId) {
       auto& stat = statistics_[m.landmark];
-      stat.point = m.landmark;
+      stat.landmark = m.landmark;
+      ++stat.found;
+    }
+  for (const LineMatch& m : assoc.lines)
+    if (m.active && !m.outlier && m.landmark != map::kNoId) {
+      auto& stat = line_statistics_[m.landmark];
+      stat.landmark = m.landmark;
       ++stat.found;
     }
   return inliers;
 }
 
-bool Tracker::relocalise(const Frame& frame, std::vector<Match>& matches, SE3& T_c_w) {
+bool Tracker::relocalise(const Frame& frame, Associations& assoc, SE3& T_c_w) {
   struct Candidate {
     std::vector<std::pair<int, map::PointId>> correspondences;  // feature, landmark
     std::vector<Eigen::Vector3d> p_w;
@@ -583,24 +864,24 @@ bool Tracker::relocalise(const Frame& frame, std::vector<Match>& matches, SE3& T
     for (int r = 0; r < 3; ++r)
       for (int col = 0; col < 3; ++col) Re(r, col) = R(r, col);
     SE3 pose(Re, Eigen::Vector3d(tvec.at<double>(0), tvec.at<double>(1), tvec.at<double>(2)));
-    std::fill(matches.begin(), matches.end(), Match{});
+    assoc.clear();
     for (int k : inliers) {
-      Match& m =
-          matches[static_cast<std::size_t>(c.correspondences[static_cast<std::size_t>(k)].first)];
+      Match& m = assoc.points[static_cast<std::size_t>(
+          c.correspondences[static_cast<std::size_t>(k)].first)];
       m.landmark = c.correspondences[static_cast<std::size_t>(k)].second;
       m.p_w = c.p_w[static_cast<std::size_t>(k)];
       m.active = true;
     }
-    if (optimize(frame, matches, pose) < options_.min_pose_inliers) continue;
+    if (optimize(frame, assoc, pose) < options_.min_pose_inliers) continue;
     T_c_w = pose;
     return true;
   }
-  std::fill(matches.begin(), matches.end(), Match{});
+  assoc.clear();
   return false;
 }
 
-bool Tracker::need_keyframe(const Frame& frame, const std::vector<Match>& matches, int inliers,
-                            bool mapper_idle, std::size_t mapper_queue) const {
+bool Tracker::need_keyframe(const Frame& frame, const Associations& assoc, bool mapper_idle,
+                            std::size_t mapper_queue) const {
   std::uint64_t n_keyframes = 0;
   {
     auto lock = map_.read_lock();
@@ -611,27 +892,34 @@ bool Tracker::need_keyframe(const Frame& frame, const std::vector<Match>& matche
       last_relocalisation_frame_ > 0 &&
       n_keyframes > static_cast<std::uint64_t>(options_.max_frames_between_keyframes))
     return false;
+  // The decision counts map landmarks only (matches to the last frame's depth points and
+  // segments say nothing about how well the map covers the view): points and lines.
+  const int inliers = assoc.inlier_points(true) + assoc.inlier_lines(true);
   // Landmarks of the reference keyframe that are well established.
   int reference_matches = 0;
   {
     auto lock = map_.read_lock();
     // Observed by at least two keyframes (one while the map is that young).
-    const int min_obs = n_keyframes <= 2 ? 1 : 2;
+    const std::size_t min_obs = n_keyframes <= 2 ? 1 : 2;
     if (const map::KeyFrame* ref = map_.keyframe(reference_)) {
       for (map::PointId p : ref->landmarks)
         if (p != map::kNoId)
           if (const map::MapPoint* mp = map_.point(p))
-            reference_matches += static_cast<int>(mp->observations.size()) >= min_obs ? 1 : 0;
+            reference_matches += mp->observations.size() >= min_obs ? 1 : 0;
+      for (map::LineId l : ref->line_landmarks)
+        if (l != map::kNoId)
+          if (const map::MapLine* ml = map_.line(l))
+            reference_matches += ml->observations.size() >= min_obs ? 1 : 0;
     }
   }
   // Close points tracked / not tracked.
   int tracked_close = 0, untracked_close = 0;
   const double close = close_depth();
-  for (std::size_t i = 0; i < matches.size(); ++i) {
+  for (std::size_t i = 0; i < assoc.points.size(); ++i) {
     const auto& f = frame.features->points[i];
     if (!f.has_depth() || f.depth >= close) continue;
-    const bool tracked =
-        matches[i].active && !matches[i].outlier && matches[i].landmark != map::kNoId;
+    const Match& m = assoc.points[i];
+    const bool tracked = m.active && !m.outlier && m.landmark != map::kNoId;
     tracked ? ++tracked_close : ++untracked_close;
   }
   const bool need_close = tracked_close < options_.close_tracked_threshold &&
@@ -646,27 +934,44 @@ bool Tracker::need_keyframe(const Frame& frame, const std::vector<Match>& matche
   return mapper_idle || mapper_queue < 3;
 }
 
-KeyFrameRequest Tracker::make_keyframe(const Frame& frame, const std::vector<Match>& matches,
+KeyFrameRequest Tracker::make_keyframe(const Frame& frame, const Associations& assoc,
                                        const SE3& T_c_w) {
   KeyFrameRequest request;
   request.id = next_keyframe_id_++;
   request.frame = frame;
   request.T_c_w = T_c_w;
-  request.landmarks.assign(frame.features->points.size(), map::kNoId);
-  for (std::size_t i = 0; i < matches.size(); ++i)
-    if (matches[i].active && !matches[i].outlier) request.landmarks[i] = matches[i].landmark;
-  for (const auto& kv : statistics_) request.statistics.push_back(kv.second);
-  std::sort(request.statistics.begin(), request.statistics.end(),
-            [](const PointStatistics& a, const PointStatistics& b) { return a.point < b.point; });
+  request.landmarks.assign(assoc.points.size(), map::kNoId);
+  for (std::size_t i = 0; i < assoc.points.size(); ++i)
+    if (assoc.points[i].active && !assoc.points[i].outlier)
+      request.landmarks[i] = assoc.points[i].landmark;
+  request.line_landmarks.assign(assoc.lines.size(), map::kNoId);
+  for (std::size_t i = 0; i < assoc.lines.size(); ++i)
+    if (assoc.lines[i].active && !assoc.lines[i].outlier)
+      request.line_landmarks[i] = assoc.lines[i].landmark;
+  request.plane_landmarks.assign(assoc.planes.size(), map::kNoId);
+  for (std::size_t i = 0; i < assoc.planes.size(); ++i)
+    if (assoc.planes[i].active && !assoc.planes[i].outlier)
+      request.plane_landmarks[i] = assoc.planes[i].landmark;
+  const auto sorted = [](const auto& table) {
+    std::vector<LandmarkStatistics> out;
+    for (const auto& kv : table) out.push_back(kv.second);
+    std::sort(out.begin(), out.end(), [](const LandmarkStatistics& a, const LandmarkStatistics& b) {
+      return a.landmark < b.landmark;
+    });
+    return out;
+  };
+  request.statistics = sorted(statistics_);
+  request.line_statistics = sorted(line_statistics_);
   statistics_.clear();
+  line_statistics_.clear();
   pending_keyframes_[request.id] = T_c_w;
   last_keyframe_frame_ = frame.id;
   reference_ = request.id;
   return request;
 }
 
-void Tracker::remember_last_frame(const Frame& frame, const std::vector<Match>& matches,
-                                  const SE3& T_c_w, map::KeyFrameId reference) {
+void Tracker::remember_last_frame(const Frame& frame, const Associations& assoc, const SE3& T_c_w,
+                                  map::KeyFrameId reference) {
   LastFrame last;
   last.frame = frame;
   last.T_c_w = T_c_w;
@@ -687,8 +992,9 @@ void Tracker::remember_last_frame(const Frame& frame, const std::vector<Match>& 
   std::vector<std::pair<float, std::size_t>> by_depth;
   for (std::size_t i = 0; i < n; ++i) {
     const auto& f = frame.features->points[i];
-    if (matches[i].active && !matches[i].outlier && matches[i].landmark != map::kNoId) {
-      last.landmarks[i] = matches[i].landmark;
+    const Match& m = assoc.points[i];
+    if (m.active && !m.outlier && m.landmark != map::kNoId) {
+      last.landmarks[i] = m.landmark;
       continue;
     }
     if (f.has_depth()) by_depth.emplace_back(f.depth, i);
@@ -700,6 +1006,15 @@ void Tracker::remember_last_frame(const Frame& frame, const std::vector<Match>& 
     const auto& f = frame.features->points[by_depth[k].second];
     last.depth_points[by_depth[k].second] =
         camera_.unproject(f.keypoint.uv.cast<double>(), f.depth);
+  }
+  // Segments: their map line when tracked, else their own 3D fit.
+  const std::size_t n_lines = frame.features->lines.size();
+  last.line_landmarks.assign(n_lines, map::kNoId);
+  last.line_has_depth.assign(n_lines, false);
+  for (std::size_t i = 0; i < n_lines; ++i) {
+    const LineMatch& m = assoc.lines[i];
+    if (m.active && !m.outlier && m.landmark != map::kNoId) last.line_landmarks[i] = m.landmark;
+    last.line_has_depth[i] = frame.features->lines[i].has_depth;
   }
   last_ = std::move(last);
 }

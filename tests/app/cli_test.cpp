@@ -162,13 +162,13 @@ struct MainRun {
   CliResult result;
 };
 
-/// `mcslam run SEQ --output OUT --sequential -q` on the main sequence, once per process.
+/// `mcslam run SEQ --output OUT --sequential --save-map -q` on the main sequence, once per process.
 const MainRun& main_run() {
   static const MainRun run = [] {
     MainRun r;
     r.out = root() / "out";
     r.result = run_cli("run " + quote(main_sequence().string()) + " --output " +
-                       quote(r.out.string()) + " --sequential -q");
+                       quote(r.out.string()) + " --sequential --save-map -q");
     return r;
   }();
   return run;
@@ -206,7 +206,7 @@ TEST(CliRun, WritesAllOutputs) {
   ASSERT_EQ(run.result.exit_code, 0) << run.result;
   EXPECT_TRUE(run.result.out.empty()) << "-q prints nothing\n" << run.result;
   for (const char* name : {"trajectory.txt", "trajectory_online.txt", "keyframes.txt",
-                           "timings.csv", "summary.json", "config.yaml"})
+                           "timings.csv", "summary.json", "config.yaml", "map.ply", "map.json"})
     EXPECT_TRUE(fs::is_regular_file(run.out / name)) << name;
 
   const nlohmann::json summary = read_json(run.out / "summary.json");
@@ -251,6 +251,65 @@ TEST(CliRun, WritesAllOutputs) {
   EXPECT_NE(csv.front().find("total_ms"), std::string::npos);
   for (std::size_t i = 1; i < csv.size(); ++i)
     EXPECT_EQ(csv[i].rfind(std::to_string(i - 1) + ",", 0), 0u) << csv[i];
+  for (const char* column : {",points,", ",lines,", ",planes,", ",line_inliers,", ",plane_inliers,",
+                             ",line_extract_ms,", ",plane_extract_ms,"})
+    EXPECT_NE(csv.front().find(column), std::string::npos) << column;
+
+  // Line and plane figures in the summary.
+  ASSERT_TRUE(summary.contains("lines_in_map"));
+  ASSERT_TRUE(summary.contains("planes_in_map"));
+  EXPECT_GT(summary["planes_in_map"].get<int>(), 0);
+  ASSERT_TRUE(summary["stages"].contains("line_extract"));
+  ASSERT_TRUE(summary["stages"].contains("plane_extract"));
+  ASSERT_TRUE(summary["per_frame_counts"].contains("line_inliers"));
+}
+
+TEST(CliRun, SavedMapIsAValidPlyAndJson) {
+  const MainRun& run = main_run();
+  ASSERT_EQ(run.result.exit_code, 0) << run.result;
+  const nlohmann::json summary = read_json(run.out / "summary.json");
+  const auto ply = lines_of(run.out / "map.ply");
+  ASSERT_GT(ply.size(), 10u);
+  EXPECT_EQ(ply[0], "ply");
+  EXPECT_EQ(ply[1], "format ascii 1.0");
+  std::size_t vertices = 0, edges = 0, faces = 0, header = 0;
+  for (; header < ply.size() && ply[header] != "end_header"; ++header) {
+    std::istringstream words(ply[header]);
+    std::string w, kind;
+    std::size_t n = 0;
+    if (words >> w >> kind >> n && w == "element")
+      (kind == "vertex" ? vertices : kind == "edge" ? edges : faces) = n;
+  }
+  ASSERT_LT(header, ply.size());
+  EXPECT_EQ(ply.size() - header - 1, vertices + edges + faces);
+  EXPECT_EQ(edges, summary["lines_in_map"].get<std::size_t>());
+  EXPECT_GE(vertices, summary["points_in_map"].get<std::size_t>() + 2 * edges);
+
+  const nlohmann::json map = read_json(run.out / "map.json");
+  EXPECT_EQ(map["points"].size(), summary["points_in_map"].get<std::size_t>());
+  EXPECT_EQ(map["lines"].size(), summary["lines_in_map"].get<std::size_t>());
+  EXPECT_EQ(map["planes"].size(), summary["planes_in_map"].get<std::size_t>());
+  EXPECT_EQ(map["keyframes"].size(), summary["keyframes_in_map"].get<std::size_t>());
+  ASSERT_FALSE(map["points"].empty());
+  EXPECT_FALSE(map["points"][0]["observations"].empty());
+}
+
+TEST(CliRun, FeatureSwitches) {
+  const fs::path out = root() / "out_points_only";
+  const CliResult r = run_cli("run " + quote(main_sequence().string()) + " --output " +
+                              quote(out.string()) + " --sequential --features points -q");
+  ASSERT_EQ(r.exit_code, 0) << r;
+  const nlohmann::json summary = read_json(out / "summary.json");
+  EXPECT_EQ(summary["lines_in_map"].get<int>(), 0);
+  EXPECT_EQ(summary["planes_in_map"].get<int>(), 0);
+  EXPECT_FALSE(summary["features"]["lines"].get<bool>());
+  EXPECT_FALSE(summary["stages"].contains("line_extract"));
+
+  const CliResult bad =
+      run_cli("run " + quote(main_sequence().string()) + " --output " +
+              quote((root() / "out_bad_features").string()) + " --features points,curves -q");
+  EXPECT_EQ(bad.exit_code, 1) << bad;
+  EXPECT_NE(bad.err.find("curves"), std::string::npos) << bad;
 }
 
 TEST(CliRun, EffectiveConfigLoadsBackAndSequentialRunIsDeterministic) {
@@ -378,6 +437,15 @@ TEST(CliBadInput, ConfigWithZeroFocalLength) {
       run_cli("run " + quote(small_sequence().string()) + " --output " +
               quote((root() / "o_fx").string()) + " --config " + quote(config.string()) + " -q");
   expect_input_error(r, {config.string(), "fx"});
+}
+
+TEST(CliBadInput, ConfigWithNegativeLineCount) {
+  const fs::path config = root() / "bad_lines.yaml";
+  write_file(config, "lines:\n  max_lines: -1\n");
+  const CliResult r =
+      run_cli("run " + quote(small_sequence().string()) + " --output " +
+              quote((root() / "o_lines").string()) + " --config " + quote(config.string()) + " -q");
+  expect_input_error(r, {config.string(), "max_lines"});
 }
 
 TEST(CliBadInput, OutputUnderARegularFile) {

@@ -29,19 +29,22 @@ double median_depth_error(const FrameBuilder& builder, const cv::Mat& gray, cons
 }
 
 TEST(FrameBuilder, DepthPerKeypointAndTimeOffsetCompensation) {
-  synth::SynthOptions options;
-  options.frames = 2;
-  options.speed = 3.0;
-  synth::SyntheticSequence seq(options);
+  synth::SynthOptions synth_options;
+  synth_options.frames = 2;
+  synth_options.speed = 3.0;
+  synth::SyntheticSequence seq(synth_options);
   const double t = 0.5;
   const double offset = 0.02;  // depth taken 20 ms before the colour image
-  const SE3 T_w_rgb = synth::camera_pose_at(t, options.speed);
-  const SE3 T_w_depth = synth::camera_pose_at(t - offset, options.speed);
+  const SE3 T_w_rgb = synth::camera_pose_at(t, synth_options.speed);
+  const SE3 T_w_depth = synth::camera_pose_at(t - offset, synth_options.speed);
   const auto rgb_frame = seq.renderer().render(T_w_rgb, t);
   const auto depth_frame = seq.renderer().render(T_w_depth, t - offset);
   cv::Mat gray;
   cv::cvtColor(rgb_frame.rgb, gray, cv::COLOR_BGR2GRAY);
-  FrameBuilder builder(seq.camera(), features::OrbOptions{}, 0.1, 10.0);
+  SystemOptions options;
+  options.use.lines = false;
+  options.use.planes = false;
+  FrameBuilder builder(seq.camera(), options);
 
   int n_aligned = 0, n_raw = 0, n_comp = 0;
   const double aligned =

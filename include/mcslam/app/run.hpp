@@ -19,10 +19,20 @@ struct RunRequest {
   int max_frames = 0;
   /// Progress bar on stderr.
   bool progress = false;
+  /// Also write map.ply and map.json (see map/export.hpp).
+  bool save_map = false;
+  /// Feature kinds to use, overriding the configuration: a comma-separated subset of
+  /// "points,lines,planes".
+  std::optional<std::string> features;
 };
 
-/// Runs the sequence and writes into output_dir: trajectory.txt, keyframes.txt, timings.csv,
-/// summary.json and config.yaml. Returns the summary. Throws InputError for bad input.
+/// Parses a --features list ("points,lines,planes" or a subset); throws InputError naming the
+/// unknown kind.
+void apply_feature_list(const std::string& list, bool& points, bool& lines, bool& planes);
+
+/// Runs the sequence and writes into output_dir: trajectory.txt, trajectory_online.txt,
+/// keyframes.txt, timings.csv, summary.json, config.yaml, and with save_map map.ply and
+/// map.json. Returns the summary. Throws InputError for bad input.
 nlohmann::json run_sequence(const RunRequest& request);
 
 /// One line per figure a person wants to see after a run.

@@ -1,13 +1,15 @@
 #pragma once
-// The immutable point observations of one RGB-D frame, shared by the frame and, when it becomes
-// a keyframe, by the keyframe (std::shared_ptr<const FrameFeatures>).
+// The immutable observations of one RGB-D frame (ORB points, line segments, planes), shared by the
+// frame and, when it becomes a keyframe, by the keyframe (std::shared_ptr<const FrameFeatures>).
 
 #include <cmath>
 #include <memory>
 #include <vector>
 
 #include "mcslam/features/grid.hpp"
+#include "mcslam/features/lines.hpp"
 #include "mcslam/features/orb.hpp"
+#include "mcslam/features/planes.hpp"
 
 namespace mcslam::features {
 
@@ -46,12 +48,17 @@ struct PointFeature {
   OrbDescriptor descriptor;
   float depth = -1.0f;
   float u_right = -1.0f;
+  /// The frame plane (index into FrameFeatures::planes) the point lies on, -1 for none: later
+  /// stages use it to tell an object's features from those of the floor or wall behind it.
+  int plane = -1;
 
   bool has_depth() const { return depth > 0.0f; }
 };
 
 struct FrameFeatures {
   std::vector<PointFeature> points;
+  std::vector<LineFeature> lines;
+  std::vector<PlaneFeature> planes;
   KeypointGrid grid;
   std::shared_ptr<const ScalePyramid> pyramid;
 };

@@ -8,8 +8,12 @@
 
 #include "mcslam/core/camera.hpp"
 #include "mcslam/core/se3.hpp"
+#include "mcslam/core/timing.hpp"
 #include "mcslam/features/frame_features.hpp"
+#include "mcslam/features/lines.hpp"
 #include "mcslam/features/orb.hpp"
+#include "mcslam/features/planes.hpp"
+#include "mcslam/slam/options.hpp"
 
 namespace mcslam::slam {
 
@@ -31,23 +35,39 @@ struct FrameMotion {
   double readout_time = 0.0;
 };
 
-/// Builds the per-keypoint depth and virtual right coordinate. `gray` is CV_8UC1 and `depth` is
-/// CV_32FC1 in metres (0 = missing), both undistorted and of the camera's size.
+/// Extracts the feature kinds switched on in the options (ORB points with their depth and
+/// virtual right coordinate, line segments with 3D endpoints, planes) and tells which plane each
+/// point lies on. `gray` is CV_8UC1 and `depth` is CV_32FC1 in metres (0 = missing), both
+/// undistorted and of the camera's size.
 class FrameBuilder {
  public:
-  FrameBuilder(const PinholeCamera& camera, const features::OrbOptions& orb, double min_depth,
-               double max_depth);
+  FrameBuilder(const PinholeCamera& camera, const SystemOptions& options);
+  ~FrameBuilder();
+  /// Stage times go to `times` when given: orb_extract, line_extract, plane_extract.
   Frame build(std::uint64_t id, double timestamp, const cv::Mat& gray, const cv::Mat& depth,
-              const FrameMotion& motion = {}) const;
+              const FrameMotion& motion = {}, StageTimes* times = nullptr) const;
   const std::shared_ptr<const features::ScalePyramid>& pyramid() const { return pyramid_; }
 
  private:
-  PinholeCamera camera_;
-  features::OrbExtractor extractor_;
-  std::shared_ptr<const features::ScalePyramid> pyramid_;
   std::optional<float> depth_at(const cv::Mat& depth, double u, double v) const;
+  void build_points(const cv::Mat& gray, const cv::Mat& depth, const FrameMotion& motion,
+                    features::FrameFeatures& out) const;
+  void build_lines(const cv::Mat& gray, const cv::Mat& depth, const FrameMotion& motion,
+                   features::FrameFeatures& out) const;
+  void build_planes(const cv::Mat& depth, const FrameMotion& motion,
+                    features::FrameFeatures& out) const;
+  /// The rotation that moves a bearing seen at image row v to the middle row's time.
+  Eigen::Matrix3d rolling_shutter_rotation(const FrameMotion& motion, double v) const;
+
+  PinholeCamera camera_;
+  FeatureSwitches use_;
   double min_depth_;
   double max_depth_;
+  double on_plane_distance_;
+  features::OrbExtractor orb_;
+  std::unique_ptr<features::LineExtractor> lines_;
+  std::unique_ptr<features::PlaneExtractor> planes_;
+  std::shared_ptr<const features::ScalePyramid> pyramid_;
 };
 
 }  // namespace mcslam::slam

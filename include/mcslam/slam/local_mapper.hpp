@@ -22,8 +22,10 @@ namespace mcslam::slam {
 
 class LocalMapper {
  public:
-  LocalMapper(const PinholeCamera& camera, const MapperOptions& options, double close_depth,
-              map::Map& map);
+  /// The tracker's options give the measurement weights and matching thresholds of lines and
+  /// planes, so that tracking and mapping judge them alike.
+  LocalMapper(const PinholeCamera& camera, const MapperOptions& options,
+              const TrackerOptions& tracker_options, double close_depth, map::Map& map);
   ~LocalMapper();
   LocalMapper(const LocalMapper&) = delete;
   LocalMapper& operator=(const LocalMapper&) = delete;
@@ -49,10 +51,18 @@ class LocalMapper {
  private:
   void run();
   void insert_keyframe(const KeyFrameRequest& request);
-  void create_points(map::KeyFrameId id);
+  void create_points(map::KeyFrameId id, const cv::Mat& color);
+  /// New map lines from the keyframe's 3D segments that no map line explains.
+  void create_lines(map::KeyFrameId id);
+  /// Frame planes not matched by the tracker: matched to a map plane here, or new map planes.
+  void associate_planes(map::KeyFrameId id);
   void cull_recent_points(map::KeyFrameId current);
+  void cull_recent_lines(map::KeyFrameId current);
   void fuse_neighbours(map::KeyFrameId id);
   int fuse_into(map::KeyFrameId target, const std::vector<map::PointId>& points);
+  int fuse_lines_into(map::KeyFrameId target, const std::vector<map::LineId>& lines);
+  /// Merges map planes that coincide (within plane_merge_angle_deg and plane_merge_distance).
+  void merge_planes();
   void local_bundle_adjustment(map::KeyFrameId id);
   void bundle_adjust_keyframes(const std::vector<map::KeyFrameId>& keyframes,
                                const optim::BundleAdjustmentOptions& options,
@@ -64,6 +74,9 @@ class LocalMapper {
   double close_depth_;
   map::Map& map_;
   std::vector<map::PointId> recent_points_;
+  std::vector<map::LineId> recent_lines_;
+  features::LineMatchCriteria line_criteria_;
+  TrackerOptions tracker_options_;
 
   mutable std::mutex queue_mutex_;
   std::condition_variable queue_cv_;

@@ -3,7 +3,9 @@
 #include <optional>
 #include <string>
 
+#include "mcslam/features/lines.hpp"
 #include "mcslam/features/orb.hpp"
+#include "mcslam/features/planes.hpp"
 #include "mcslam/optim/bundle_adjustment.hpp"
 #include "mcslam/optim/pose_optimizer.hpp"
 
@@ -49,6 +51,35 @@ struct TrackerOptions {
   int relocalisation_candidates = 30;
   /// Frames that need this many keypoints with depth to start the map.
   int min_initial_points = 500;
+  /// With lines, a frame with fewer points may also start the map when it has at least this
+  /// many line segments with depth.
+  int min_initial_lines = 10;
+  /// In the inlier counts that decide whether tracking succeeded, a line counts as one point
+  /// and a plane as this many (a plane fixes three degrees of freedom with thousands of pixels).
+  /// Points and lines must still give min_pose_inliers on their own: planes come from the depth
+  /// image alone and cannot tell a blank colour image from a good one.
+  int plane_inlier_weight = 10;
+
+  // --- lines ---
+  /// Standard deviation (pixels) of an observed line's position, for residual (7).
+  double line_sigma = 1.5;
+  /// Matching a predicted (projected) segment to an observed one.
+  int line_max_descriptor_distance = 80;
+  double line_max_angle_deg = 10.0;
+  double line_max_distance = 20.0;
+  double line_min_overlap = 0.3;
+
+  // --- planes ---
+  /// Standard deviations of an observed plane for residual (8): its normal's angles and its
+  /// distance.
+  double plane_angle_sigma_deg = 2.0;
+  double plane_distance_sigma = 0.02;
+  /// A frame plane matches a map plane within these (after prediction with the pose).
+  double plane_match_angle_deg = 10.0;
+  double plane_match_distance = 0.1;
+  /// A point with depth lies on a frame plane when within this distance of it (metres).
+  double on_plane_distance = 0.02;
+
   optim::PoseOptimizerOptions pose;
 
   std::optional<std::string> check() const;
@@ -70,6 +101,9 @@ struct MapperOptions {
   /// A keyframe is redundant when this fraction of its close points is seen by >= 3 others.
   double redundant_ratio = 0.9;
   bool cull_keyframes = true;
+  /// Map planes closer than these are merged into one.
+  double plane_merge_angle_deg = 5.0;
+  double plane_merge_distance = 0.03;
   /// When the run ends: bundle adjustment of the whole map before the final trajectory is
   /// written (the online trajectory is unaffected). 0 iterations disables it.
   int global_ba_iterations = 15;
@@ -78,8 +112,19 @@ struct MapperOptions {
   std::optional<std::string> check() const;
 };
 
+/// Which landmark kinds take part, so that users can compare (all on by default). A kind that is
+/// off is not even extracted. Relocalisation matches points, so it needs `points`.
+struct FeatureSwitches {
+  bool points = true;
+  bool lines = true;
+  bool planes = true;
+};
+
 struct SystemOptions {
+  FeatureSwitches use;
   features::OrbOptions orb;
+  features::LineOptions lines;
+  features::PlaneOptions planes;
   TrackerOptions tracker;
   MapperOptions mapper;
   /// Run local mapping inline after each keyframe (deterministic) instead of on its own thread.

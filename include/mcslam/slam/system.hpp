@@ -33,9 +33,14 @@ struct FrameResult {
   TrackingState state = TrackingState::kNotInitialized;
   bool relocalised = false;
   bool keyframe = false;
-  int features = 0;
-  int matches = 0;
+  int features = 0;  // ORB points
+  int lines = 0;     // line segments
+  int planes = 0;    // planes
+  int matches = 0;   // points
   int inliers = 0;
+  int line_matches = 0;
+  int line_inliers = 0;
+  int plane_inliers = 0;
   std::optional<SE3> T_w_c;  // when tracked
   StageTimes times;          // what the caller waited for, per stage
 };

@@ -18,9 +18,9 @@ namespace mcslam::slam {
 enum class TrackingState { kNotInitialized, kOk, kLost };
 const char* to_string(TrackingState state);
 
-/// Tracking statistics of a landmark between two keyframes (for the mapper's culling).
-struct PointStatistics {
-  map::PointId point = map::kNoId;
+/// Tracking statistics of a landmark (point or line) between two keyframes (for culling).
+struct LandmarkStatistics {
+  std::uint64_t landmark = map::kNoId;
   int visible = 0;
   int found = 0;
 };
@@ -30,8 +30,13 @@ struct KeyFrameRequest {
   map::KeyFrameId id = map::kNoId;
   Frame frame;
   SE3 T_c_w;
-  std::vector<map::PointId> landmarks;  // per feature of frame (kNoId where none)
-  std::vector<PointStatistics> statistics;
+  std::vector<map::PointId> landmarks;              // per point of frame (kNoId where none)
+  std::vector<map::LineId> line_landmarks;          // per line segment of frame
+  std::vector<map::PlaneId> plane_landmarks;        // per plane of frame
+  std::vector<LandmarkStatistics> statistics;       // points
+  std::vector<LandmarkStatistics> line_statistics;  // lines
+  /// The undistorted colour image (CV_8UC3), when the caller has one: it colours new points.
+  cv::Mat color;
 };
 
 struct TrackingOutcome {
@@ -40,8 +45,11 @@ struct TrackingOutcome {
   SE3 T_c_w;                               // valid when state == kOk
   map::KeyFrameId reference = map::kNoId;  // keyframe the pose is stored relative to
   SE3 T_c_ref;                             // pose relative to that keyframe
-  int matches = 0;                         // features matched (landmarks and depth points)
-  int inliers = 0;                         // after the final pose optimisation
+  int matches = 0;                         // points matched (landmarks and depth points)
+  int inliers = 0;                         // points, after the final pose optimisation
+  int line_matches = 0;  // segments matched (map lines and the last frame's 3D segments)
+  int line_inliers = 0;
+  int plane_inliers = 0;  // frame planes matched to map planes, after optimisation
   std::optional<KeyFrameRequest> keyframe;
 };
 
@@ -67,8 +75,42 @@ class Tracker {
     bool active = false;
     bool outlier = false;
   };
+  struct LineMatch {
+    map::LineId landmark = map::kNoId;  // kNoId: a 3D segment of the last frame
+    Eigen::Vector3d start_w = Eigen::Vector3d::Zero();
+    Eigen::Vector3d end_w = Eigen::Vector3d::Zero();
+    bool active = false;
+    bool outlier = false;
+  };
+  struct PlaneMatch {
+    map::PlaneId landmark = map::kNoId;
+    Eigen::Vector4d plane_w = Eigen::Vector4d::Zero();
+    bool active = false;
+    bool outlier = false;
+  };
+  /// The frame's associations, one entry per point, line segment and plane of the frame.
+  struct Associations {
+    std::vector<Match> points;
+    std::vector<LineMatch> lines;
+    std::vector<PlaneMatch> planes;
+
+    explicit Associations(const Frame& frame);
+    void clear();
+    /// Matched landmarks (active), and those the last optimisation kept (active, not outlier).
+    int active_points() const;
+    int active_lines() const;
+    int inlier_points(bool landmarks_only) const;
+    int inlier_lines(bool landmarks_only) const;
+    int inlier_planes() const;
+  };
+  /// Point and line landmarks of the local map.
+  struct LocalMap {
+    std::vector<map::KeyFrameId> keyframes;
+    std::vector<map::PointId> points;
+    std::vector<map::LineId> lines;
+  };
   /// What the next frame needs of this one: features, pose (relative to a keyframe, so that it
-  /// follows bundle adjustment) and, per feature, its landmark or its camera-frame depth point.
+  /// follows bundle adjustment) and, per feature, its landmark or its camera-frame geometry.
   struct LastFrame {
     Frame frame;
     map::KeyFrameId reference = map::kNoId;
@@ -76,28 +118,36 @@ class Tracker {
     SE3 T_c_w;
     std::vector<map::PointId> landmarks;
     std::vector<std::optional<Eigen::Vector3d>> depth_points;  // camera frame
+    std::vector<map::LineId> line_landmarks;
+    std::vector<bool> line_has_depth;  // the segment's own 3D endpoints (camera frame) serve
   };
 
   TrackingOutcome initialize(const Frame& frame);
-  bool track_last_frame(const Frame& frame, const SE3& prediction, std::vector<Match>& matches,
-                        SE3& T_c_w);
-  bool track_reference_keyframe(const Frame& frame, std::vector<Match>& matches, SE3& T_c_w);
-  bool relocalise(const Frame& frame, std::vector<Match>& matches, SE3& T_c_w);
-  /// Adds local-map matches and re-optimises. Returns the inlier count.
-  int track_local_map(const Frame& frame, std::vector<Match>& matches, SE3& T_c_w,
-                      double radius_factor);
+  bool track_last_frame(const Frame& frame, const SE3& prediction, Associations& assoc, SE3& T_c_w);
+  bool track_reference_keyframe(const Frame& frame, Associations& assoc, SE3& T_c_w);
+  bool relocalise(const Frame& frame, Associations& assoc, SE3& T_c_w);
+  /// Adds local-map matches and re-optimises. Returns the weighted inlier count.
+  int track_local_map(const Frame& frame, Associations& assoc, SE3& T_c_w, double radius_factor);
   int search_last_frame(const Frame& frame, const SE3& T_c_w, double radius,
                         std::vector<Match>& matches) const;
+  int search_last_lines(const Frame& frame, const SE3& T_c_w, double distance_factor,
+                        std::vector<LineMatch>& matches) const;
+  /// Matches the frame's planes to the map's. Call under the map's read lock.
+  int search_planes(const Frame& frame, const SE3& T_c_w, std::vector<PlaneMatch>& matches) const;
   int search_local_points(const Frame& frame, const SE3& T_c_w, double radius_factor,
                           std::vector<Match>& matches);
-  int optimize(const Frame& frame, std::vector<Match>& matches, SE3& T_c_w) const;
-  void update_local_map(const std::vector<Match>& matches, const SE3& T_c_w);
-  bool need_keyframe(const Frame& frame, const std::vector<Match>& matches, int inliers,
-                     bool mapper_idle, std::size_t mapper_queue) const;
-  KeyFrameRequest make_keyframe(const Frame& frame, const std::vector<Match>& matches,
-                                const SE3& T_c_w);
-  void remember_last_frame(const Frame& frame, const std::vector<Match>& matches, const SE3& T_c_w,
+  int search_local_lines(const Frame& frame, const SE3& T_c_w, std::vector<LineMatch>& matches);
+  /// Pose optimisation on every active association; returns the weighted inlier count.
+  int optimize(const Frame& frame, Associations& assoc, SE3& T_c_w) const;
+  /// Inliers as tracking success counts them: points + lines + plane_inlier_weight * planes.
+  int weighted_inliers(const Associations& assoc) const;
+  void update_local_map(const Associations& assoc, const SE3& T_c_w);
+  bool need_keyframe(const Frame& frame, const Associations& assoc, bool mapper_idle,
+                     std::size_t mapper_queue) const;
+  KeyFrameRequest make_keyframe(const Frame& frame, const Associations& assoc, const SE3& T_c_w);
+  void remember_last_frame(const Frame& frame, const Associations& assoc, const SE3& T_c_w,
                            map::KeyFrameId reference);
+  features::LineMatchCriteria line_criteria(double distance_factor) const;
   std::optional<SE3> last_frame_pose() const;
   /// Pose of a keyframe in the map, or of one still queued for the mapper.
   std::optional<SE3> keyframe_pose(map::KeyFrameId id) const;
@@ -116,12 +166,12 @@ class Tracker {
   std::uint64_t last_relocalisation_frame_ = 0;
   // Local map of the current frame.
   map::KeyFrameId reference_ = map::kNoId;
-  std::vector<map::KeyFrameId> local_keyframes_;
-  std::vector<map::PointId> local_points_;
+  LocalMap local_;
   // Poses of keyframes requested but possibly not yet in the map.
   std::unordered_map<map::KeyFrameId, SE3> pending_keyframes_;
   // Statistics gathered since the last keyframe request.
-  std::unordered_map<map::PointId, PointStatistics> statistics_;
+  std::unordered_map<map::PointId, LandmarkStatistics> statistics_;
+  std::unordered_map<map::LineId, LandmarkStatistics> line_statistics_;
 };
 
 }  // namespace mcslam::slam
