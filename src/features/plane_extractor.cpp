@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <mutex>
 #include <numbers>
 #include <numeric>
 #include <opencv2/imgproc.hpp>
@@ -252,18 +253,43 @@ int find_root(std::vector<int>& parent, int i) {
   return i;
 }
 
+/// Buffers of an extraction, kept from one call to the next: allocating and freeing them per
+/// frame let the allocator hand their pages back to the system and fault them in again, which
+/// cost ~2 ms per frame.
+struct Buffers {
+  std::vector<double> ray_x;
+  std::vector<double> ray_y;
+  std::vector<Cell> cells;
+  std::vector<Region> regions;
+  std::vector<int> majors;
+  std::vector<int> row_min;
+  std::vector<int> row_max;
+  std::vector<float> column_terms;
+};
+
 /// The per-call state of PlaneExtractor::extract.
 class Extraction {
  public:
-  Extraction(const PinholeCamera& camera, const PlaneOptions& options, const cv::Mat& depth)
+  Extraction(const PinholeCamera& camera, const PlaneOptions& options, const cv::Mat& depth,
+             Buffers& buffers)
       : o_(options),
         depth_(depth),
         width_(depth.cols),
         height_(depth.rows),
         merge_angle_(options.merge_angle_deg * std::numbers::pi / 180.0),
         cos_merge_angle_(std::cos(merge_angle_)),
-        ray_x_(static_cast<std::size_t>(depth.cols)),
-        ray_y_(static_cast<std::size_t>(depth.rows)) {
+        ray_x_(buffers.ray_x),
+        ray_y_(buffers.ray_y),
+        cells_(buffers.cells),
+        regions_(buffers.regions),
+        majors_(buffers.majors),
+        row_min_(buffers.row_min),
+        row_max_(buffers.row_max),
+        column_terms_(buffers.column_terms) {
+    ray_x_.resize(static_cast<std::size_t>(width_));
+    ray_y_.resize(static_cast<std::size_t>(height_));
+    regions_.clear();
+    majors_.clear();
     // Back-projection factors: unproject at z = 1 scales linearly with depth.
     for (int u = 0; u < width_; ++u)
       ray_x_[static_cast<std::size_t>(u)] = camera.unproject(Eigen::Vector2d(u, 0.0), 1.0).x();
@@ -834,20 +860,25 @@ class Extraction {
   const int height_;
   const double merge_angle_;
   const double cos_merge_angle_;
-  std::vector<double> ray_x_;
-  std::vector<double> ray_y_;
+  std::vector<double>& ray_x_;
+  std::vector<double>& ray_y_;
   int ncx_ = 0;
   int ncy_ = 0;
-  std::vector<Cell> cells_;
-  std::vector<Region> regions_;
-  std::vector<int> majors_;  ///< region index of each major index
+  std::vector<Cell>& cells_;
+  std::vector<Region>& regions_;
+  std::vector<int>& majors_;  ///< region index of each major index
   /// Per major index and image row: the first and last column of the region's pixels.
-  std::vector<int> row_min_;
-  std::vector<int> row_max_;
-  std::vector<float> column_terms_;  ///< scratch of assign_inner_cell
+  std::vector<int>& row_min_;
+  std::vector<int>& row_max_;
+  std::vector<float>& column_terms_;  ///< scratch of assign_inner_cell
 };
 
 }  // namespace
+
+struct PlaneExtractor::Workspace {
+  std::mutex mutex;  // one extraction at a time uses the buffers
+  Buffers buffers;
+};
 
 std::optional<std::string> PlaneOptions::check() const {
   if (cell_size < 3 || cell_size > 100) return "planes.cell_size must be in [3, 100]";
@@ -870,7 +901,7 @@ std::optional<std::string> PlaneOptions::check() const {
 }
 
 PlaneExtractor::PlaneExtractor(const PinholeCamera& camera, const PlaneOptions& options)
-    : camera_(camera), options_(options) {
+    : camera_(camera), options_(options), workspace_(std::make_unique<Workspace>()) {
   if (auto problem = options_.check()) throw InputError(*problem);
   if (auto problem = camera_.check()) throw InputError("plane extractor camera: " + *problem);
 }
@@ -882,7 +913,12 @@ PlaneExtraction PlaneExtractor::extract(const cv::Mat& depth) const {
     result.labels = cv::Mat(depth.size(), CV_8SC1, cv::Scalar(-1));
     return result;
   }
-  return Extraction(camera_, options_, depth).run();
+  std::lock_guard<std::mutex> lock(workspace_->mutex);
+  return Extraction(camera_, options_, depth, workspace_->buffers).run();
 }
+
+PlaneExtractor::~PlaneExtractor() = default;
+PlaneExtractor::PlaneExtractor(PlaneExtractor&&) noexcept = default;
+PlaneExtractor& PlaneExtractor::operator=(PlaneExtractor&&) noexcept = default;
 
 }  // namespace mcslam::features

@@ -66,16 +66,22 @@ class PlaneExtractor {
  public:
   /// Throws mcslam::InputError when options.check() or camera.check() fails.
   PlaneExtractor(const PinholeCamera& camera, const PlaneOptions& options);
+  ~PlaneExtractor();
+  PlaneExtractor(PlaneExtractor&&) noexcept;
+  PlaneExtractor& operator=(PlaneExtractor&&) noexcept;
 
   /// Planes of a CV_32FC1 depth image in metres (0 or non-finite = missing) of the camera's size;
-  /// any other input yields no planes. Deterministic and thread-safe.
+  /// any other input yields no planes. Deterministic and thread-safe (calls on one extractor
+  /// take turns: they share its scratch buffers).
   PlaneExtraction extract(const cv::Mat& depth) const;
 
   const PlaneOptions& options() const { return options_; }
 
  private:
+  struct Workspace;
   PinholeCamera camera_;
   PlaneOptions options_;
+  std::unique_ptr<Workspace> workspace_;
 };
 
 }  // namespace mcslam::features
