@@ -5,6 +5,31 @@
 #include <opencv2/imgproc.hpp>
 
 namespace mcslam::map {
+namespace {
+
+/// The descriptor with the least median Hamming distance to the others (ORB-SLAM2's choice of a
+/// landmark's representative descriptor); the first one when there are at most two.
+features::OrbDescriptor representative_descriptor(
+    const std::vector<const features::OrbDescriptor*>& observed) {
+  const std::size_t n = observed.size();
+  if (n <= 2) return *observed.front();
+  features::OrbDescriptor best;
+  int best_median = std::numeric_limits<int>::max();
+  std::vector<int> distances(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    for (std::size_t j = 0; j < n; ++j)
+      distances[j] = features::hamming_distance(*observed[i], *observed[j]);
+    std::nth_element(distances.begin(), distances.begin() + static_cast<long>((n - 1) / 2),
+                     distances.end());
+    if (distances[(n - 1) / 2] < best_median) {
+      best_median = distances[(n - 1) / 2];
+      best = *observed[i];
+    }
+  }
+  return best;
+}
+
+}  // namespace
 
 int KeyFrame::num_landmarks() const {
   return static_cast<int>(
@@ -200,25 +225,10 @@ void Map::update_point_appearance(PointId id) {
   const int level = ref_feature.keypoint.level;
   mp.max_distance = dist * pyramid.scale[static_cast<std::size_t>(level)];
   mp.min_distance = mp.max_distance / pyramid.scale.back();
-  // Representative descriptor: least median Hamming distance to the other observations.
-  if (observed.size() <= 2) {
-    mp.descriptor = observed.front()->descriptor;
-    return;
-  }
-  const std::size_t n = observed.size();
-  int best_median = std::numeric_limits<int>::max();
-  std::vector<int> distances(n);
-  for (std::size_t i = 0; i < n; ++i) {
-    for (std::size_t j = 0; j < n; ++j)
-      distances[j] = features::hamming_distance(observed[i]->descriptor, observed[j]->descriptor);
-    std::nth_element(distances.begin(), distances.begin() + static_cast<long>((n - 1) / 2),
-                     distances.end());
-    const int median = distances[(n - 1) / 2];
-    if (median < best_median) {
-      best_median = median;
-      mp.descriptor = observed[i]->descriptor;
-    }
-  }
+  std::vector<const features::OrbDescriptor*> descriptors;
+  descriptors.reserve(observed.size());
+  for (const auto* f : observed) descriptors.push_back(&f->descriptor);
+  mp.descriptor = representative_descriptor(descriptors);
 }
 
 void Map::update_covisibility(KeyFrameId id) {
@@ -350,24 +360,7 @@ void Map::update_line_appearance(LineId id) {
   for (const auto& [kf_id, index] : it->second.observations)
     if (const KeyFrame* kf = keyframe(kf_id))
       observed.push_back(&kf->features->lines[static_cast<std::size_t>(index)].descriptor);
-  if (observed.empty()) return;
-  const std::size_t n = observed.size();
-  if (n <= 2) {
-    it->second.descriptor = *observed.front();
-    return;
-  }
-  int best_median = std::numeric_limits<int>::max();
-  std::vector<int> distances(n);
-  for (std::size_t i = 0; i < n; ++i) {
-    for (std::size_t j = 0; j < n; ++j)
-      distances[j] = features::hamming_distance(*observed[i], *observed[j]);
-    std::nth_element(distances.begin(), distances.begin() + static_cast<long>((n - 1) / 2),
-                     distances.end());
-    if (distances[(n - 1) / 2] < best_median) {
-      best_median = distances[(n - 1) / 2];
-      it->second.descriptor = *observed[i];
-    }
-  }
+  if (!observed.empty()) it->second.descriptor = representative_descriptor(observed);
 }
 
 void Map::add_line_statistics(LineId id, int visible, int found) {
