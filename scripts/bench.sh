@@ -2,7 +2,8 @@
 # Accuracy and speed benchmark: runs mcslam N times on each sequence, in sequential mode
 # (deterministic; accuracy) and threaded mode (the default; speed), and prints a Markdown table of
 # medians. With --ablation it also runs the feature combinations points; points+lines;
-# points+planes; points+lines+planes (sequential) and prints a second table. Needs a build
+# points+planes; points+lines+planes (threaded, the default mode, whose runs differ; sequential
+# runs are deterministic and would repeat one figure) and prints a second table. Needs a build
 # (scripts/build.sh).
 # Usage: scripts/bench.sh [--runs N] [--output DIR] [--ablation] [SEQUENCE_DIR ...]
 # Without sequences: TUM freiburg1_rpy from ../shared/data (when present) and two synthetic
@@ -59,7 +60,7 @@ if [ "$ablation" = 1 ]; then
         dir="$out/ablation/$name/${features//,/+}-$i"
         mkdir -p "$out/ablation/$name"
         echo "bench: $name ablation $features run $i/$runs" >&2
-        if ! "$exe" run "$seq" --output "$dir" --sequential --features "$features" -q \
+        if ! "$exe" run "$seq" --output "$dir" --threaded --features "$features" -q \
             2> "$dir.err"; then
           echo "bench: run failed, see $dir.err" >&2
         fi
