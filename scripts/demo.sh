@@ -14,6 +14,6 @@ if [ ! -f "$seq/rgb.txt" ]; then
     ./build/mcslam synth --output "$seq" --frames 300 --depth-noise
   fi
 fi
-echo "== mcslam run $seq --output $out"
-./build/mcslam run "$seq" --output "$out"
-echo "== done: trajectory, keyframes, timings and summary (ATE, frame rate) are in $out/"
+echo "== mcslam run $seq --output $out --save-map"
+./build/mcslam run "$seq" --output "$out" --save-map
+echo "== done: trajectory, keyframes, timings, summary (ATE, frame rate) and the map (map.ply, map.json) are in $out/"
