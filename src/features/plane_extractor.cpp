@@ -880,6 +880,94 @@ struct PlaneExtractor::Workspace {
   Buffers buffers;
 };
 
+namespace {
+
+/// Merges planes that lie on one infinite plane (see PlaneOptions::coplanar_angle_deg) and
+/// renumbers planes (largest first) and labels.
+void merge_coplanar(const PlaneOptions& o, PlaneExtraction& result) {
+  auto& planes = result.planes;
+  const double cos_angle = std::cos(o.coplanar_angle_deg * std::numbers::pi / 180.0);
+  std::vector<int> target(planes.size());
+  std::iota(target.begin(), target.end(), 0);
+  bool merged = false;
+  for (std::size_t i = 0; i < planes.size(); ++i) {
+    if (target[i] != static_cast<int>(i)) continue;
+    for (std::size_t j = i + 1; j < planes.size(); ++j) {
+      if (target[j] != static_cast<int>(j)) continue;
+      PlaneFeature& a = planes[i];
+      const PlaneFeature& b = planes[j];
+      if (a.normal.dot(b.normal) < cos_angle) continue;
+      if (std::abs(a.distance(b.centroid)) > o.coplanar_distance ||
+          std::abs(b.distance(a.centroid)) > o.coplanar_distance)
+        continue;
+      const double wa = a.num_pixels, wb = b.num_pixels, w = wa + wb;
+      std::vector<Eigen::Vector3d> corners = a.hull;
+      corners.insert(corners.end(), b.hull.begin(), b.hull.end());
+      a.normal = (wa * a.normal + wb * b.normal).normalized();
+      a.centroid = (wa * a.centroid + wb * b.centroid) / w;
+      a.d = -a.normal.dot(a.centroid);
+      a.rms = std::sqrt((wa * a.rms * a.rms + wb * b.rms * b.rms) / w);
+      a.num_pixels += b.num_pixels;
+      a.hull = plane_hull(a.normal, a.d, corners);
+      target[j] = static_cast<int>(i);
+      merged = true;
+    }
+  }
+  if (!merged) return;
+  // Survivors by decreasing size; a lookup table renumbers the labels.
+  std::vector<int> survivors;
+  for (std::size_t i = 0; i < planes.size(); ++i)
+    if (target[i] == static_cast<int>(i)) survivors.push_back(static_cast<int>(i));
+  std::stable_sort(survivors.begin(), survivors.end(), [&](int x, int y) {
+    return planes[static_cast<std::size_t>(x)].num_pixels >
+           planes[static_cast<std::size_t>(y)].num_pixels;
+  });
+  std::vector<int> new_index(planes.size(), -1);
+  std::vector<PlaneFeature> kept;
+  for (int k : survivors) {
+    new_index[static_cast<std::size_t>(k)] = static_cast<int>(kept.size());
+    kept.push_back(std::move(planes[static_cast<std::size_t>(k)]));
+  }
+  std::array<std::int8_t, 256> lut;
+  lut.fill(-1);
+  for (std::size_t i = 0; i < target.size(); ++i)
+    lut[static_cast<std::uint8_t>(static_cast<std::int8_t>(i))] =
+        static_cast<std::int8_t>(new_index[static_cast<std::size_t>(target[i])]);
+  for (int v = 0; v < result.labels.rows; ++v) {
+    auto* row = result.labels.ptr<std::int8_t>(v);
+    for (int u = 0; u < result.labels.cols; ++u)
+      if (row[u] >= 0) row[u] = lut[static_cast<std::uint8_t>(row[u])];
+  }
+  planes = std::move(kept);
+}
+
+}  // namespace
+
+std::vector<Eigen::Vector3d> plane_hull(const Eigen::Vector3d& normal, double d,
+                                        const std::vector<Eigen::Vector3d>& points) {
+  // An orthonormal basis (e1, e2) of the plane, and the plane's point closest to the origin.
+  const Eigen::Vector3d helper =
+      std::abs(normal.x()) < 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY();
+  const Eigen::Vector3d e1 = normal.cross(helper).normalized();
+  const Eigen::Vector3d e2 = normal.cross(e1);
+  const Eigen::Vector3d origin = -d * normal;
+  std::vector<cv::Point2f> flat;
+  flat.reserve(points.size());
+  for (const auto& p : points)
+    flat.emplace_back(static_cast<float>(e1.dot(p - origin)),
+                      static_cast<float>(e2.dot(p - origin)));
+  std::vector<cv::Point2f> hull;
+  if (flat.size() >= 3)
+    cv::convexHull(flat, hull, false, true);
+  else
+    hull = flat;
+  std::vector<Eigen::Vector3d> out;
+  out.reserve(hull.size());
+  for (const auto& h : hull)
+    out.push_back(origin + static_cast<double>(h.x) * e1 + static_cast<double>(h.y) * e2);
+  return out;
+}
+
 std::optional<std::string> PlaneOptions::check() const {
   if (cell_size < 3 || cell_size > 100) return "planes.cell_size must be in [3, 100]";
   if (!std::isfinite(cell_tolerance) || cell_tolerance <= 0.0 || cell_tolerance > 1.0)
@@ -897,6 +985,10 @@ std::optional<std::string> PlaneOptions::check() const {
     return "planes.max_fit_rms must be in (0, 1] metres";
   // Labels are CV_8SC1, so plane indices must fit in a signed byte.
   if (max_planes < 1 || max_planes > 127) return "planes.max_planes must be in [1, 127]";
+  if (!std::isfinite(coplanar_angle_deg) || coplanar_angle_deg < 0.0 || coplanar_angle_deg >= 90.0)
+    return "planes.coplanar_angle_deg must be in [0, 90)";
+  if (!std::isfinite(coplanar_distance) || coplanar_distance < 0.0 || coplanar_distance > 1.0)
+    return "planes.coplanar_distance must be in [0, 1] metres";
   return std::nullopt;
 }
 
@@ -914,7 +1006,9 @@ PlaneExtraction PlaneExtractor::extract(const cv::Mat& depth) const {
     return result;
   }
   std::lock_guard<std::mutex> lock(workspace_->mutex);
-  return Extraction(camera_, options_, depth, workspace_->buffers).run();
+  PlaneExtraction result = Extraction(camera_, options_, depth, workspace_->buffers).run();
+  merge_coplanar(options_, result);
+  return result;
 }
 
 PlaneExtractor::~PlaneExtractor() = default;

@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <opencv2/imgproc.hpp>
 
 namespace mcslam::map {
 namespace {
@@ -372,33 +371,6 @@ void Map::add_line_statistics(LineId id, int visible, int found) {
 
 // --- planes ---
 
-namespace {
-
-/// Convex hull of points projected onto the plane (n, d), in world coordinates.
-std::vector<Eigen::Vector3d> plane_hull(const Eigen::Vector3d& normal, double d,
-                                        const std::vector<Eigen::Vector3d>& points) {
-  if (points.size() < 3) return points;
-  // An orthonormal basis (e1, e2) of the plane.
-  const Eigen::Vector3d helper =
-      std::abs(normal.x()) < 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY();
-  const Eigen::Vector3d e1 = normal.cross(helper).normalized();
-  const Eigen::Vector3d e2 = normal.cross(e1);
-  const Eigen::Vector3d origin = -d * normal;
-  std::vector<cv::Point2f> flat;
-  flat.reserve(points.size());
-  for (const auto& p : points)
-    flat.emplace_back(static_cast<float>(e1.dot(p - origin)),
-                      static_cast<float>(e2.dot(p - origin)));
-  std::vector<cv::Point2f> hull;
-  cv::convexHull(flat, hull, false, true);
-  std::vector<Eigen::Vector3d> out;
-  out.reserve(hull.size());
-  for (const auto& h : hull) out.push_back(origin + double(h.x) * e1 + double(h.y) * e2);
-  return out;
-}
-
-}  // namespace
-
 PlaneId Map::add_plane(const Eigen::Vector4d& plane_w, const std::vector<Eigen::Vector3d>& hull_w,
                        KeyFrameId keyframe, int plane_index) {
   const PlaneId id = next_plane_id_++;
@@ -408,7 +380,7 @@ PlaneId Map::add_plane(const Eigen::Vector4d& plane_w, const std::vector<Eigen::
   mp.normal = plane_w.head<3>() / norm;
   mp.d = plane_w[3] / norm;
   mp.first_keyframe = keyframe;
-  mp.hull = plane_hull(mp.normal, mp.d, hull_w);
+  mp.hull = features::plane_hull(mp.normal, mp.d, hull_w);
   planes_.emplace(id, std::move(mp));
   add_plane_observation(id, keyframe, plane_index);
   return id;
@@ -443,7 +415,7 @@ void Map::set_plane(PlaneId id, const Eigen::Vector4d& plane_w) {
   it->second.normal = plane_w.head<3>() / norm;
   it->second.d = plane_w[3] / norm;
   // Keep the extent on the moved plane.
-  it->second.hull = plane_hull(it->second.normal, it->second.d, it->second.hull);
+  it->second.hull = features::plane_hull(it->second.normal, it->second.d, it->second.hull);
 }
 
 void Map::extend_plane(PlaneId id, const std::vector<Eigen::Vector3d>& points_w) {
@@ -451,7 +423,7 @@ void Map::extend_plane(PlaneId id, const std::vector<Eigen::Vector3d>& points_w)
   if (it == planes_.end()) return;
   std::vector<Eigen::Vector3d> all = it->second.hull;
   all.insert(all.end(), points_w.begin(), points_w.end());
-  it->second.hull = plane_hull(it->second.normal, it->second.d, all);
+  it->second.hull = features::plane_hull(it->second.normal, it->second.d, all);
 }
 
 void Map::replace_plane(PlaneId old_plane, PlaneId new_plane) {

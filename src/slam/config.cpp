@@ -61,6 +61,8 @@ std::vector<Field> mcslam_fields(PinholeCamera& c, SystemOptions& o) {
       {"planes.min_area_fraction", &o.planes.min_area_fraction},
       {"planes.max_fit_rms", &o.planes.max_fit_rms},
       {"planes.max_planes", &o.planes.max_planes},
+      {"planes.coplanar_angle_deg", &o.planes.coplanar_angle_deg},
+      {"planes.coplanar_distance", &o.planes.coplanar_distance},
       {"tracker.close_depth_factor", &t.close_depth_factor},
       {"tracker.min_depth", &t.min_depth},
       {"tracker.max_depth", &t.max_depth},

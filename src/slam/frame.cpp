@@ -1,5 +1,6 @@
 #include "mcslam/slam/frame.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -125,6 +126,10 @@ void FrameBuilder::build_lines(const cv::Mat& gray, const cv::Mat& depth, const 
   const bool rolling_shutter = rolling(motion);
   for (auto& line : out.lines) {
     lines_->fit_depth(camera_, depth, line);
+    // The same depth range as points: beyond it the sensor's depth is not to be trusted.
+    if (line.has_depth && (std::min(line.start_c.z(), line.end_c.z()) < min_depth_ ||
+                           std::max(line.start_c.z(), line.end_c.z()) > max_depth_))
+      line.has_depth = false;
     if (line.has_depth && compensate) {
       // Fitted in the depth image: move the 3D segment to the colour capture time.
       line.start_c = *motion.T_rgb_depth * line.start_c;

@@ -284,6 +284,36 @@ TEST(PlaneExtractor, SinglePlaneFillsTheImage) {
   EXPECT_GE(plane.hull.size(), 4u);
 }
 
+TEST(PlaneExtractor, CoplanarPiecesSplitByAnObjectAreOnePlane) {
+  const PinholeCamera camera = test::make_camera();
+  // A wall at z = 2 m, cut in two by a full-height pillar at z = 1 m in the middle third; its
+  // right piece is measured 5 mm further (depth noise), within coplanar_distance.
+  cv::Mat depth(camera.height, camera.width, CV_32FC1, cv::Scalar(2.0f));
+  depth.colRange(camera.width / 3, 2 * camera.width / 3).setTo(1.0f);
+  depth.colRange(2 * camera.width / 3, camera.width).setTo(2.005f);
+  const PlaneExtraction merged = PlaneExtractor(camera, {}).extract(depth);
+  ASSERT_EQ(merged.planes.size(), 2u);
+  // The wall (two thirds of the image) first, labelled on both sides of the pillar.
+  EXPECT_NEAR(merged.planes[0].d, 2.0025, 1e-3);
+  EXPECT_NEAR(merged.planes[1].d, 1.0, 1e-3);
+  EXPECT_EQ(merged.labels.at<std::int8_t>(10, 5), 0);
+  EXPECT_EQ(merged.labels.at<std::int8_t>(10, camera.width - 5), 0);
+  EXPECT_EQ(merged.labels.at<std::int8_t>(10, camera.width / 2), 1);
+  EXPECT_EQ(cv::countNonZero(merged.labels == 0), merged.planes[0].num_pixels);
+  // Its hull spans both pieces.
+  double min_x = 1e9, max_x = -1e9;
+  for (const auto& h : merged.planes[0].hull) {
+    min_x = std::min(min_x, h.x());
+    max_x = std::max(max_x, h.x());
+  }
+  EXPECT_LT(min_x, camera.unproject(Eigen::Vector2d(20, 0), 2.0).x());
+  EXPECT_GT(max_x, camera.unproject(Eigen::Vector2d(camera.width - 20, 0), 2.0).x());
+  // Without the merge the two pieces stay apart.
+  PlaneOptions apart;
+  apart.coplanar_distance = 0.002;
+  EXPECT_EQ(PlaneExtractor(camera, apart).extract(depth).planes.size(), 3u);
+}
+
 TEST(PlaneExtractor, RandomDepthHasNoPlanes) {
   const PinholeCamera camera = test::make_camera();
   cv::Mat depth(camera.height, camera.width, CV_32FC1);

@@ -34,6 +34,12 @@ struct PlaneOptions {
   double max_fit_rms = 0.03;
   /// At most this many planes are kept, largest first.
   int max_planes = 8;
+  /// Regions that are not connected in the image but lie on one plane (a desk on both sides of
+  /// a keyboard, the floor on both sides of a chair) become one plane when their normals differ
+  /// by less than coplanar_angle_deg and each centroid is within coplanar_distance of the other's
+  /// plane: a plane is infinite, and the map must not hold it twice.
+  double coplanar_angle_deg = 3.0;
+  double coplanar_distance = 0.01;
 
   std::optional<std::string> check() const;
 };
@@ -61,6 +67,12 @@ struct PlaneExtraction {
   /// CV_8SC1 of the depth image's size: the index of the plane each pixel belongs to, -1 none.
   cv::Mat labels;
 };
+
+/// The convex hull of points projected onto the plane n . p + d = 0 (|n| = 1), in the same 3D
+/// frame, counter-clockwise seen from the normal side. Fewer than three points come back as they
+/// are (projected).
+std::vector<Eigen::Vector3d> plane_hull(const Eigen::Vector3d& normal, double d,
+                                        const std::vector<Eigen::Vector3d>& points);
 
 class PlaneExtractor {
  public:
