@@ -18,6 +18,7 @@
 #include "mcslam/features/lines.hpp"
 #include "mcslam/synth/renderer.hpp"
 #include "mcslam/synth/sequence.hpp"
+#include "support/low_texture_sequence.hpp"
 
 namespace mcslam::features {
 namespace {
@@ -26,14 +27,7 @@ constexpr double kDeg = std::numbers::pi / 180.0;
 // Rendered views spread over the camera path (boxes, the table, room corners in sight).
 constexpr int kViews[] = {0, 60, 120, 200, 260};
 
-const synth::SyntheticSequence& sequence() {
-  static const synth::SyntheticSequence seq = [] {
-    synth::SynthOptions o;
-    o.texture = synth::TextureLevel::kLow;
-    return synth::SyntheticSequence(o);
-  }();
-  return seq;
-}
+const synth::SyntheticSequence& sequence() { return test::low_texture_sequence(); }
 
 cv::Mat to_gray(const cv::Mat& bgr) {
   cv::Mat gray;

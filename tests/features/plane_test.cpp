@@ -16,6 +16,7 @@
 #include "mcslam/features/planes.hpp"
 #include "mcslam/synth/renderer.hpp"
 #include "mcslam/synth/sequence.hpp"
+#include "support/low_texture_sequence.hpp"
 #include "support/test_camera.hpp"
 
 namespace mcslam::features {
@@ -45,14 +46,7 @@ struct View {
   std::vector<int> visible;
 };
 
-const synth::SyntheticSequence& sequence() {
-  static const synth::SyntheticSequence seq = [] {
-    synth::SynthOptions o;
-    o.texture = synth::TextureLevel::kLow;
-    return synth::SyntheticSequence(o);
-  }();
-  return seq;
-}
+const synth::SyntheticSequence& sequence() { return test::low_texture_sequence(); }
 
 TruePlane to_camera(const std::string& name, const Eigen::Vector3d& n_w, const Eigen::Vector3d& p_w,
                     const SE3& T_c_w, int object) {
