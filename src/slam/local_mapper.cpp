@@ -17,12 +17,7 @@ LocalMapper::LocalMapper(const PinholeCamera& camera, const MapperOptions& optio
       options_(options),
       close_depth_(close_depth),
       map_(map),
-      tracker_options_(tracker_options) {
-  line_criteria_.max_descriptor_distance = tracker_options.line_max_descriptor_distance;
-  line_criteria_.max_angle_deg = tracker_options.line_max_angle_deg;
-  line_criteria_.max_distance = tracker_options.line_max_distance;
-  line_criteria_.min_overlap = tracker_options.line_min_overlap;
-}
+      tracker_options_(tracker_options) {}
 
 LocalMapper::~LocalMapper() { finish(); }
 
@@ -216,7 +211,6 @@ void LocalMapper::associate_planes(map::KeyFrameId id) {
   const SE3 T_w_c = kf->T_w_c();
   const Eigen::Matrix3d R_w_c = T_w_c.rotation();
   const Eigen::Vector3d t_c_w = kf->T_c_w.translation();
-  const double max_angle = tracker_options_.plane_match_angle_deg * M_PI / 180.0;
   const auto planes = kf->features->planes;
   const auto landmarks = kf->plane_landmarks;
   for (std::size_t i = 0; i < planes.size(); ++i) {
@@ -228,12 +222,9 @@ void LocalMapper::associate_planes(map::KeyFrameId id) {
     double best_score = 2.0;
     for (const auto& [pid, mp] : map_.planes()) {
       if (mp.observations.count(id) != 0) continue;
-      const double angle = std::acos(std::clamp(mp.normal.dot(n_w), -1.0, 1.0));
-      const double distance = std::abs(mp.d - d_w);
-      if (angle > max_angle || distance > tracker_options_.plane_match_distance) continue;
-      const double score = angle / max_angle + distance / tracker_options_.plane_match_distance;
-      if (score < best_score) {
-        best_score = score;
+      const auto score = plane_match_score(tracker_options_, mp.normal, mp.d, n_w, d_w);
+      if (score && *score < best_score) {
+        best_score = *score;
         best = pid;
       }
     }
@@ -272,17 +263,14 @@ int LocalMapper::fuse_lines_into(map::KeyFrameId target_id, const std::vector<ma
   for (map::LineId lid : lines) {
     const map::MapLine* ml = map_.line(lid);
     if (ml == nullptr || ml->observations.count(target_id) != 0) continue;
-    const Eigen::Vector3d s = target->T_c_w * ml->start_w;
-    const Eigen::Vector3d e = target->T_c_w * ml->end_w;
-    if (s.z() < 0.05 || e.z() < 0.05) continue;
-    features::PredictedLine p;
-    p.start = camera_.project(s);
-    p.end = camera_.project(e);
-    p.descriptor = ml->descriptor;
-    predicted.push_back(p);
+    auto p = project_segment(camera_, target->T_c_w, ml->start_w, ml->end_w);
+    if (!p) continue;
+    p->descriptor = ml->descriptor;
+    predicted.push_back(*p);
     source.push_back(lid);
   }
-  const auto found = features::match_lines(predicted, target->features->lines, line_criteria_);
+  const auto found = features::match_lines(predicted, target->features->lines,
+                                           line_match_criteria(tracker_options_));
   int fused = 0;
   for (const auto& m : found) {
     target = map_.keyframe(target_id);

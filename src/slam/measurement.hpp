@@ -2,12 +2,18 @@
 // What one keypoint, line segment or plane measures, for the pose optimiser and bundle
 // adjustment.
 
+#include <algorithm>
 #include <cmath>
+#include <optional>
 
+#include "mcslam/core/camera.hpp"
+#include "mcslam/core/se3.hpp"
 #include "mcslam/features/frame_features.hpp"
+#include "mcslam/features/lines.hpp"
 #include "mcslam/optim/line_residual.hpp"
 #include "mcslam/optim/plane_residual.hpp"
 #include "mcslam/optim/reprojection.hpp"
+#include "mcslam/slam/options.hpp"
 
 namespace mcslam::slam {
 
@@ -44,6 +50,48 @@ inline optim::PlaneMeasurement plane_measurement_of(const features::PlaneFeature
   m.angle_information = 1.0 / (sigma_angle * sigma_angle);
   m.distance_information = 1.0 / (sigma_distance * sigma_distance);
   return m;
+}
+
+/// The tracker's segment-matching thresholds, the distance scaled by distance_factor (wider
+/// windows when the pose prediction is poor).
+inline features::LineMatchCriteria line_match_criteria(const TrackerOptions& o,
+                                                       double distance_factor = 1.0) {
+  features::LineMatchCriteria c;
+  c.max_descriptor_distance = o.line_max_descriptor_distance;
+  c.max_angle_deg = o.line_max_angle_deg;
+  c.max_distance = o.line_max_distance * distance_factor;
+  c.min_overlap = o.line_min_overlap;
+  return c;
+}
+
+/// A 3D segment (world) projected with T_c_w; nullopt when an endpoint is behind the camera or
+/// the segment lies entirely outside the image.
+inline std::optional<features::PredictedLine> project_segment(const PinholeCamera& camera,
+                                                              const SE3& T_c_w,
+                                                              const Eigen::Vector3d& start_w,
+                                                              const Eigen::Vector3d& end_w) {
+  const Eigen::Vector3d s = T_c_w * start_w;
+  const Eigen::Vector3d e = T_c_w * end_w;
+  constexpr double kMinZ = 0.05;
+  if (s.z() < kMinZ || e.z() < kMinZ) return std::nullopt;
+  features::PredictedLine line;
+  line.start = camera.project(s);
+  line.end = camera.project(e);
+  if (!camera.in_image(line.start) && !camera.in_image(line.end) &&
+      !camera.in_image(0.5 * (line.start + line.end)))
+    return std::nullopt;
+  return line;
+}
+
+/// How well two planes (same frame) agree for matching: angle / plane_match_angle +
+/// distance / plane_match_distance, in [0, 2]; nullopt beyond either threshold.
+inline std::optional<double> plane_match_score(const TrackerOptions& o, const Eigen::Vector3d& n_a,
+                                               double d_a, const Eigen::Vector3d& n_b, double d_b) {
+  const double max_angle = o.plane_match_angle_deg * M_PI / 180.0;
+  const double angle = std::acos(std::clamp(n_a.dot(n_b), -1.0, 1.0));
+  const double distance = std::abs(d_a - d_b);
+  if (angle > max_angle || distance > o.plane_match_distance) return std::nullopt;
+  return angle / max_angle + distance / o.plane_match_distance;
 }
 
 }  // namespace mcslam::slam

@@ -62,25 +62,6 @@ class RotationHistogram {
   std::array<std::vector<int>, kRotationBins> bins_;
 };
 
-/// A 3D segment (world) projected with T_c_w; nullopt when an endpoint is behind the camera or
-/// the segment lies entirely outside the image.
-std::optional<features::PredictedLine> project_segment(const PinholeCamera& camera,
-                                                       const SE3& T_c_w,
-                                                       const Eigen::Vector3d& start_w,
-                                                       const Eigen::Vector3d& end_w) {
-  const Eigen::Vector3d s = T_c_w * start_w;
-  const Eigen::Vector3d e = T_c_w * end_w;
-  constexpr double kMinZ = 0.05;
-  if (s.z() < kMinZ || e.z() < kMinZ) return std::nullopt;
-  features::PredictedLine line;
-  line.start = camera.project(s);
-  line.end = camera.project(e);
-  if (!camera.in_image(line.start) && !camera.in_image(line.end) &&
-      !camera.in_image(0.5 * (line.start + line.end)))
-    return std::nullopt;
-  return line;
-}
-
 }  // namespace
 
 Tracker::Associations::Associations(const Frame& frame)
@@ -351,15 +332,6 @@ int Tracker::search_last_frame(const Frame& frame, const SE3& T_c_w, double radi
   return count;
 }
 
-features::LineMatchCriteria Tracker::line_criteria(double distance_factor) const {
-  features::LineMatchCriteria c;
-  c.max_descriptor_distance = options_.line_max_descriptor_distance;
-  c.max_angle_deg = options_.line_max_angle_deg;
-  c.max_distance = options_.line_max_distance * distance_factor;
-  c.min_overlap = options_.line_min_overlap;
-  return c;
-}
-
 int Tracker::search_last_lines(const Frame& frame, const SE3& T_c_w, double distance_factor,
                                std::vector<LineMatch>& matches) const {
   const auto& last_lines = last_->frame.features->lines;
@@ -390,8 +362,8 @@ int Tracker::search_last_lines(const Frame& frame, const SE3& T_c_w, double dist
       landmark.push_back(id);
     }
   }
-  const auto found =
-      features::match_lines(predicted, frame.features->lines, line_criteria(distance_factor));
+  const auto found = features::match_lines(predicted, frame.features->lines,
+                                           line_match_criteria(options_, distance_factor));
   for (const auto& m : found) {
     LineMatch& match = matches[static_cast<std::size_t>(m.observed)];
     const auto k = static_cast<std::size_t>(m.predicted);
@@ -408,7 +380,6 @@ int Tracker::search_planes(const Frame& frame, const SE3& T_c_w,
                            std::vector<PlaneMatch>& matches) const {
   const auto& planes = frame.features->planes;
   if (planes.empty() || map_.num_planes() == 0) return 0;
-  const double max_angle = options_.plane_match_angle_deg * M_PI / 180.0;
   const Eigen::Matrix3d R = T_c_w.rotation();
   const Eigen::Vector3d t = T_c_w.translation();
   // Every (frame plane, map plane) pair within the thresholds, best first; each used once.
@@ -421,12 +392,9 @@ int Tracker::search_planes(const Frame& frame, const SE3& T_c_w,
   for (const auto& [id, mp] : map_.planes()) {
     const Eigen::Vector3d n_c = R * mp.normal;
     const double d_c = mp.d - n_c.dot(t);
-    for (std::size_t k = 0; k < planes.size(); ++k) {
-      const double angle = std::acos(std::clamp(n_c.dot(planes[k].normal), -1.0, 1.0));
-      const double distance = std::abs(d_c - planes[k].d);
-      if (angle > max_angle || distance > options_.plane_match_distance) continue;
-      candidates.push_back({angle / max_angle + distance / options_.plane_match_distance, k, id});
-    }
+    for (std::size_t k = 0; k < planes.size(); ++k)
+      if (const auto score = plane_match_score(options_, n_c, d_c, planes[k].normal, planes[k].d))
+        candidates.push_back({*score, k, id});
   }
   std::sort(candidates.begin(), candidates.end(), [](const Candidate& a, const Candidate& b) {
     return a.score != b.score ? a.score < b.score : a.landmark < b.landmark;
@@ -503,7 +471,7 @@ bool Tracker::track_reference_keyframe(const Frame& frame, Associations& assoc, 
     predicted_lines.push_back(ml);
   }
   const auto line_found =
-      features::match_lines(predicted, frame.features->lines, line_criteria(4.0));
+      features::match_lines(predicted, frame.features->lines, line_match_criteria(options_, 4.0));
   for (const auto& m : line_found) {
     const map::MapLine* ml = predicted_lines[static_cast<std::size_t>(m.predicted)];
     assoc.lines[static_cast<std::size_t>(m.observed)] =
@@ -737,7 +705,8 @@ int Tracker::search_local_lines(const Frame& frame, const SE3& T_c_w,
     free_lines.push_back(frame.features->lines[i]);
     free_index.push_back(i);
   }
-  const auto found = features::match_lines(predicted, free_lines, line_criteria(1.0));
+  const auto found =
+      features::match_lines(predicted, free_lines, line_match_criteria(options_, 1.0));
   for (const auto& m : found) {
     const map::MapLine* ml = source[static_cast<std::size_t>(m.predicted)];
     matches[free_index[static_cast<std::size_t>(m.observed)]] =

@@ -75,7 +75,6 @@ class LocalMapper {
   map::Map& map_;
   std::vector<map::PointId> recent_points_;
   std::vector<map::LineId> recent_lines_;
-  features::LineMatchCriteria line_criteria_;
   TrackerOptions tracker_options_;
 
   mutable std::mutex queue_mutex_;

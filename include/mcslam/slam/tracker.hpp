@@ -147,7 +147,6 @@ class Tracker {
   KeyFrameRequest make_keyframe(const Frame& frame, const Associations& assoc, const SE3& T_c_w);
   void remember_last_frame(const Frame& frame, const Associations& assoc, const SE3& T_c_w,
                            map::KeyFrameId reference);
-  features::LineMatchCriteria line_criteria(double distance_factor) const;
   std::optional<SE3> last_frame_pose() const;
   /// Pose of a keyframe in the map, or of one still queued for the mapper.
   std::optional<SE3> keyframe_pose(map::KeyFrameId id) const;
