@@ -15,7 +15,8 @@ std::optional<std::string> PoseOptimizerOptions::check() const {
   if (rounds < 1) return "pose_optimizer.rounds must be at least 1";
   if (iterations_per_round < 1) return "pose_optimizer.iterations_per_round must be at least 1";
   if (robust_rounds < 0) return "pose_optimizer.robust_rounds must not be negative";
-  if (!(chi2_rgbd > 0.0) || !(chi2_mono > 0.0) || !(chi2_line > 0.0) || !(chi2_plane > 0.0))
+  if (!(chi2_rgbd > 0.0) || !(chi2_mono > 0.0) || !(chi2_line > 0.0) || !(chi2_plane > 0.0) ||
+      !(chi2_constraint > 0.0))
     return "pose_optimizer chi-square thresholds must be positive";
   return std::nullopt;
 }
@@ -26,11 +27,17 @@ PoseOptimizationResult optimize_pose(const PinholeCamera& camera, const SE3& ini
   const auto& points = problem.points;
   const auto& lines = problem.lines;
   const auto& planes = problem.planes;
+  const auto& constrained_points = problem.constrained_points;
+  const auto& constrained_lines = problem.constrained_lines;
   PoseOptimizationResult result;
   result.T_c_w = initial_T_c_w;
   result.inlier.assign(points.size(), true);
   result.line_inlier.assign(lines.size(), true);
   result.plane_inlier.assign(planes.size(), true);
+  result.constrained_point_inlier.assign(constrained_points.size(), true);
+  result.constrained_line_inlier.assign(constrained_lines.size(), true);
+  // Constraint terms alone could never fix the pose (see the check before Solve), so they do not
+  // count here either.
   if (points.empty() && lines.empty() && planes.empty()) return result;
 
   double pose[kPoseSize];
@@ -40,6 +47,7 @@ PoseOptimizationResult optimize_pose(const PinholeCamera& camera, const SE3& ini
   ceres::HuberLoss huber_mono(std::sqrt(options.chi2_mono));
   ceres::HuberLoss huber_line(std::sqrt(options.chi2_line));
   ceres::HuberLoss huber_plane(std::sqrt(options.chi2_plane));
+  ceres::HuberLoss huber_constraint(std::sqrt(options.chi2_constraint));
 
   ceres::Solver::Options solver_options;
   solver_options.linear_solver_type = ceres::DENSE_QR;
@@ -85,8 +93,20 @@ PoseOptimizationResult optimize_pose(const PinholeCamera& camera, const SE3& ini
                                      robust ? &huber_plane : nullptr, pose);
       ++active;
     }
-    // Every kind gives at least two independent equations, so three observations of any mix are
-    // the least that can fix the six degrees of freedom.
+    for (std::size_t i = 0; i < constrained_points.size(); ++i) {
+      if (!result.constrained_point_inlier[i]) continue;
+      ceres_problem.AddResidualBlock(new PoseOnlyConstrainedPointError(constrained_points[i]),
+                                     robust ? &huber_constraint : nullptr, pose);
+    }
+    for (std::size_t i = 0; i < constrained_lines.size(); ++i) {
+      if (!result.constrained_line_inlier[i]) continue;
+      ceres_problem.AddResidualBlock(new PoseOnlyConstrainedLineError(constrained_lines[i]),
+                                     robust ? &huber_constraint : nullptr, pose);
+    }
+    // Every kind of landmark gives at least two independent equations, so three observations of
+    // any mix are the least that can fix the six degrees of freedom. The constraint terms are not
+    // counted: however many there are, they leave the position along their plane and the rotation
+    // about its normal free.
     if (active < 3) break;
     ceres::Solver::Summary summary;
     ceres::Solve(solver_options, &ceres_problem, &summary);
@@ -118,8 +138,24 @@ PoseOptimizationResult optimize_pose(const PinholeCamera& camera, const SE3& ini
       result.plane_inlier[i] = plane_chi2(obs.measurement, n_c, d_c) <= options.chi2_plane;
       result.num_plane_inliers += result.plane_inlier[i] ? 1 : 0;
     }
-    // Too few inliers of all kinds together to go on rejecting outliers.
-    if (result.num_inliers + result.num_line_inliers + result.num_plane_inliers < 10) break;
+    result.num_constrained_point_inliers = 0;
+    for (std::size_t i = 0; i < constrained_points.size(); ++i) {
+      result.constrained_point_inlier[i] =
+          constrained_point_chi2(T_c_w, constrained_points[i]) <= options.chi2_constraint;
+      result.num_constrained_point_inliers += result.constrained_point_inlier[i] ? 1 : 0;
+    }
+    result.num_constrained_line_inliers = 0;
+    for (std::size_t i = 0; i < constrained_lines.size(); ++i) {
+      result.constrained_line_inlier[i] =
+          constrained_line_chi2(T_c_w, constrained_lines[i]) <= options.chi2_constraint;
+      result.num_constrained_line_inliers += result.constrained_line_inlier[i] ? 1 : 0;
+    }
+    // Too few inliers of all kinds together to go on rejecting outliers. Constraint inliers are
+    // evidence for the classification too (the landmark minimum is enforced above).
+    if (result.num_inliers + result.num_line_inliers + result.num_plane_inliers +
+            result.num_constrained_point_inliers + result.num_constrained_line_inliers <
+        10)
+      break;
   }
   result.T_c_w = block_to_pose(pose);
   return result;

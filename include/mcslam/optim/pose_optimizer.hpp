@@ -1,6 +1,7 @@
 #pragma once
 // Pose-only optimisation of one frame against fixed world points (Ceres, Huber loss, rounds of
-// outlier rejection by a chi-square test, as ORB-SLAM2's PoseOptimization).
+// outlier rejection by a chi-square test, as ORB-SLAM2's PoseOptimization), lines and planes, and
+// the features of constrained moving objects (constraint_residual.hpp).
 
 #include <optional>
 #include <string>
@@ -8,6 +9,7 @@
 
 #include "mcslam/core/camera.hpp"
 #include "mcslam/core/se3.hpp"
+#include "mcslam/optim/constraint_residual.hpp"
 #include "mcslam/optim/line_residual.hpp"
 #include "mcslam/optim/plane_residual.hpp"
 #include "mcslam/optim/reprojection.hpp"
@@ -25,6 +27,8 @@ struct PoseOptimizerOptions {
   /// Lines: 2 dof (the two endpoint distances); planes: 3 dof.
   double chi2_line = 5.991;
   double chi2_plane = 7.815;
+  /// Constrained moving-object points (9) and lines (10): 1 dof each.
+  double chi2_constraint = 3.841;
   std::optional<std::string> check() const;
 };
 
@@ -44,11 +48,15 @@ struct PosePlaneObservation {
   PlaneMeasurement measurement;
 };
 
-/// Everything one frame observes of fixed landmarks.
+/// Everything one frame observes of fixed landmarks, and of constrained moving objects.
 struct PoseProblem {
   std::vector<PoseObservation> points;
   std::vector<PoseLineObservation> lines;
   std::vector<PosePlaneObservation> planes;
+  /// Features of objects that slid on a plane (residuals (9), (10)). They fix only the height
+  /// above and the tilt to their plane, so they are no substitute for the landmarks above.
+  std::vector<ConstrainedPointMeasurement> constrained_points;
+  std::vector<ConstrainedLineMeasurement> constrained_lines;
 };
 
 struct PoseOptimizationResult {
@@ -56,13 +64,18 @@ struct PoseOptimizationResult {
   std::vector<bool> inlier;  // per point observation
   std::vector<bool> line_inlier;
   std::vector<bool> plane_inlier;
+  std::vector<bool> constrained_point_inlier;
+  std::vector<bool> constrained_line_inlier;
   int num_inliers = 0;  // points
   int num_line_inliers = 0;
   int num_plane_inliers = 0;
+  int num_constrained_point_inliers = 0;
+  int num_constrained_line_inliers = 0;
 };
 
-/// Optimises the pose against points, lines and planes together (residuals (6), (7), (8)), each
-/// under a Huber loss at its own chi-square threshold.
+/// Optimises the pose against points, lines, planes and constrained moving-object features
+/// together (residuals (6) to (10), cost (11)), each under a Huber loss at its own chi-square
+/// threshold.
 PoseOptimizationResult optimize_pose(const PinholeCamera& camera, const SE3& initial_T_c_w,
                                      const PoseProblem& problem,
                                      const PoseOptimizerOptions& options);
