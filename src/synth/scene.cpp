@@ -2,10 +2,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <opencv2/core/utility.hpp>
 #include <string>
 
+#include "dynamic.hpp"
 #include "mcslam/core/error.hpp"
 #include "random.hpp"
 #include "texture.hpp"
@@ -59,6 +61,13 @@ std::vector<std::shared_ptr<const Texture>> make_textures(const std::vector<Text
   return textures;
 }
 
+/// "1.6", "0.3", "3" (for messages).
+std::string format_number(double v) {
+  char buffer[32];
+  std::snprintf(buffer, sizeof(buffer), "%g", v);
+  return buffer;
+}
+
 struct BoxSpec {
   const char* class_name;
   Eigen::Vector3d centre;  // of the box; z = half height for a box standing on the floor
@@ -83,6 +92,22 @@ std::optional<std::string> SynthOptions::check() const {
     return "rgb_noise_sigma must be finite and >= 0";
   if (!finite(readout_time) || readout_time < 0.0 || readout_time > 0.1)
     return "readout_time must be finite and in [0, 0.1] s";
+  // Checked even when disabled, so that a bad value is reported rather than silently ignored.
+  using D = DynamicObjects;
+  auto in = [&](double v, double lo, double hi) { return finite(v) && v >= lo && v <= hi; };
+  auto range = [](double lo, double hi) {
+    return " [" + format_number(lo) + ", " + format_number(hi) + "]";
+  };
+  if (!in(dynamic.person_speed, 0.0, D::kMaxSpeed))
+    return "dynamic.person_speed must be finite and in" + range(0.0, D::kMaxSpeed) + " m/s";
+  if (!in(dynamic.chair_speed, 0.0, D::kMaxSpeed))
+    return "dynamic.chair_speed must be finite and in" + range(0.0, D::kMaxSpeed) + " m/s";
+  if (!in(dynamic.person_scale, D::kMinScale, D::kMaxPersonScale))
+    return "dynamic.person_scale must be finite and in" + range(D::kMinScale, D::kMaxPersonScale);
+  if (!in(dynamic.chair_scale, D::kMinScale, D::kMaxChairScale))
+    return "dynamic.chair_scale must be finite and in" + range(D::kMinScale, D::kMaxChairScale);
+  if (!finite(dynamic.start_time) || dynamic.start_time < 0.0)
+    return "dynamic.start_time must be finite and >= 0 s";
   return std::nullopt;
 }
 
@@ -98,6 +123,18 @@ PinholeCamera SynthOptions::camera() const {
   camera.bf = 40.0;
   camera.readout_time = readout_time;
   return camera;
+}
+
+const char* motion_kind_name(MotionKind kind) {
+  switch (kind) {
+    case MotionKind::kStatic:
+      return "static";
+    case MotionKind::kFree:
+      return "free";
+    case MotionKind::kSlide:
+      return "slide";
+  }
+  return "static";
 }
 
 std::vector<Eigen::Vector3d> SceneObject::corners_at(double t) const {
@@ -161,16 +198,30 @@ Scene make_room_scene(const SynthOptions& options) {
   }
 
   // Objects stand on the floor, mostly along the +x wall and the +-y walls (where the camera
-  // looks), all at least ~1 m from the camera path.
+  // looks), all at least ~1 m from the camera path. Their COCO class names roughly fit their
+  // shapes, so that an oracle detector labels them as (static) objects.
   const BoxSpec specs[] = {
-      {"table", {2.2, 1.0, 0.375}, {0.4, 0.6, 0.375}, 0.0},
-      {"box", {2.2, 1.1, 0.87}, {0.15, 0.2, 0.12}, -15.0},  // on the table
-      {"box", {2.6, -0.3, 0.6}, {0.25, 0.35, 0.6}, 0.0},    // cabinet
-      {"box", {2.2, -1.5, 0.25}, {0.25, 0.25, 0.25}, 25.0},
-      {"box", {0.8, 2.0, 0.35}, {0.35, 0.25, 0.35}, 10.0},
-      {"box", {1.0, -2.0, 0.2}, {0.4, 0.3, 0.2}, -5.0},
-      {"box", {-0.9, 1.95, 0.45}, {0.3, 0.3, 0.45}, 30.0},
-      {"box", {-2.2, -1.0, 0.4}, {0.3, 0.5, 0.4}, 0.0},
+      {"dining table", {2.2, 1.0, 0.375}, {0.4, 0.6, 0.375}, 0.0},
+      {"microwave", {2.2, 1.1, 0.87}, {0.15, 0.2, 0.12}, -15.0},  // on the table
+      {"refrigerator", {2.6, -0.3, 0.6}, {0.25, 0.35, 0.6}, 0.0},
+      {"tv", {2.2, -1.5, 0.25}, {0.25, 0.25, 0.25}, 25.0},
+      {"oven", {0.8, 2.0, 0.35}, {0.35, 0.25, 0.35}, 10.0},
+      {"suitcase", {1.0, -2.0, 0.2}, {0.4, 0.3, 0.2}, -5.0},
+      {"sink", {-0.9, 1.95, 0.45}, {0.3, 0.3, 0.45}, 30.0},
+      {"couch", {-2.2, -1.0, 0.4}, {0.3, 0.5, 0.4}, 0.0},
+  };
+  // Each object's texture is the next job, with one face per layer; the seeds depend only on the
+  // job's position, so adding the moving objects last leaves every other texture unchanged.
+  auto add_object = [&](SceneObject object) {
+    object.texture_id = static_cast<int>(jobs.size());
+    TextureJob job{{}, detail::SurfaceKind::kBoxFace, detail::hash_combine(seed, jobs.size())};
+    for (int f = 0; f < 6; ++f) {
+      const int axis = f / 2;
+      job.faces.emplace_back(2.0 * object.half_extents[(axis + 1) % 3],
+                             2.0 * object.half_extents[(axis + 2) % 3]);
+    }
+    jobs.push_back(std::move(job));
+    scene.objects.push_back(std::move(object));
   };
   for (const BoxSpec& spec : specs) {
     SceneObject object;
@@ -178,15 +229,11 @@ Scene make_room_scene(const SynthOptions& options) {
     object.half_extents = spec.half_extents;
     const SE3 T_w_o(Eigen::Quaterniond(Eigen::AngleAxisd(spec.yaw_deg * kDeg, ez)), spec.centre);
     object.pose_at = [T_w_o](double) { return T_w_o; };
-    object.texture_id = static_cast<int>(jobs.size());
-    TextureJob job{{}, detail::SurfaceKind::kBoxFace, detail::hash_combine(seed, jobs.size())};
-    for (int f = 0; f < 6; ++f) {
-      const int axis = f / 2;
-      job.faces.emplace_back(2.0 * spec.half_extents[(axis + 1) % 3],
-                             2.0 * spec.half_extents[(axis + 2) % 3]);
-    }
-    jobs.push_back(std::move(job));
-    scene.objects.push_back(std::move(object));
+    add_object(std::move(object));
+  }
+  if (options.dynamic.enabled) {
+    if (options.dynamic.person) add_object(detail::make_person(options.dynamic));
+    if (options.dynamic.chair) add_object(detail::make_chair(options.dynamic));
   }
   scene.textures = make_textures(jobs, options.texture);
   return scene;

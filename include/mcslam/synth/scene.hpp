@@ -52,6 +52,35 @@ struct SynthOptions {
   /// at t (the middle of the readout).
   double readout_time = 0.0;
 
+  /// Moving objects for dynamic-scene tests: a "person" that moves freely in 3D and a "chair"
+  /// that slides on the floor (see make_room_scene). Disabled by default; then the scene is
+  /// exactly the static room.
+  struct DynamicObjects {
+    /// Valid range of person_scale and chair_scale (the chair has less room to slide in).
+    static constexpr double kMinScale = 0.3;
+    static constexpr double kMaxPersonScale = 1.6;
+    static constexpr double kMaxChairScale = 1.4;
+    /// Valid range of person_speed and chair_speed.
+    static constexpr double kMaxSpeed = 3.0;
+    /// Seconds over which each object's motion ramps up smoothly from rest after start_time.
+    static constexpr double kRampTime = 1.0;
+
+    bool enabled = false;
+    bool person = true;  ///< add the person (when enabled)
+    bool chair = true;   ///< add the chair (when enabled)
+    /// Time scale of the person's motion: its peak horizontal speed in m/s (the vertical bobbing
+    /// and tilting speed up by the same factor); 0 keeps it still.
+    double person_speed = 1.0;
+    /// Time scale of the chair's motion: its peak speed on the floor in m/s.
+    double chair_speed = 0.5;
+    /// Size factors of the person (0.5 x 0.35 x 1.7 m at 1) and the chair (0.5 x 0.5 x 0.9 m).
+    double person_scale = 1.0;
+    double chair_scale = 1.0;
+    /// Scene time (seconds) at which both objects start moving; before it they are static.
+    double start_time = 1.0;
+  };
+  DynamicObjects dynamic;
+
   /// An empty optional when usable; otherwise a message naming the bad field.
   std::optional<std::string> check() const;
   /// The intrinsics: depth_factor 5000, bf 40, no distortion, and readout_time.
@@ -82,15 +111,29 @@ struct Surface {
   Eigen::Vector3d normal() const { return u_axis.cross(v_axis); }
 };
 
+/// How an object moves (ground truth for dynamic-object tests):
+///  - kStatic: never moves;
+///  - kFree: moves freely in 3D (translation in x, y and z, and rotation about horizontal axes), so
+///    the heights of its points above the floor change;
+///  - kSlide: slides on the floor (translation in x and y, rotation about the vertical z axis
+///    only): the heights of its points above the floor never change.
+enum class MotionKind { kStatic, kFree, kSlide };
+
+/// "static", "free" or "slide".
+const char* motion_kind_name(MotionKind kind);
+
 /// An object, rendered as a textured box of half_extents centred at the origin of its frame o.
 /// Faces are numbered 2 * axis + (positive side ? 1 : 0) (axis 0 = x, 1 = y, 2 = z); face f uses
 /// layer f of Scene::textures[texture_id], with texture coordinates (p[(axis + 1) % 3] + h,
 /// p[(axis + 2) % 3] + h) in the object frame.
 struct SceneObject {
-  std::string class_name;  ///< "box", "table", ... later also "person", "chair"
+  /// A COCO class name ("dining table", "refrigerator", ..., "person", "chair"), so that an
+  /// oracle detector reports it like a real one would.
+  std::string class_name;
   Eigen::Vector3d half_extents = Eigen::Vector3d::Constant(0.5);
   std::function<SE3(double)> pose_at;  ///< T_w_o at scene time t
   int texture_id = 0;
+  MotionKind motion = MotionKind::kStatic;
 
   /// The 8 corners in the world frame at time t.
   std::vector<Eigen::Vector3d> corners_at(double t) const;
@@ -114,8 +157,38 @@ struct Scene {
   double clearance(const Eigen::Vector3d& p_w, double t) const;
 };
 
-/// The room scene with its procedural textures (deterministic from options.seed and
-/// options.texture; the camera options are not used). Throws InputError on bad options.
+/// The room scene with its procedural textures (deterministic from options.seed,
+/// options.texture and options.dynamic; the camera options are not used). Throws InputError on
+/// bad options.
+///
+/// Static objects (indices 0-7, COCO class names): "dining table" (x 1.8-2.6, y 0.4-1.6), a
+/// "microwave" on it, a "refrigerator" (x 2.35-2.85, y -0.65-0.05, 1.2 m tall) and a "tv" near the
+/// +x wall, an "oven" and a "sink" by the +y wall, a "suitcase" by the -y wall and a "couch" behind
+/// the camera's start.
+///
+/// With options.dynamic.enabled, the person and then the chair (when requested) follow as objects
+/// 8 (and 9). Both are at rest until start_time, then their motion ramps up smoothly over kRampTime
+/// seconds and continues for ever, without pauses (all motions are sums of sinusoids in the
+/// object's own motion time, which runs at the object's speed factor). Both stay at least 0.8 m
+/// from every camera position of camera_path (at any speed), inside the room, and clear of the
+/// static objects and of each other (their areas are disjoint), at every scale in range:
+///  - "person" (MotionKind::kFree): a box 0.35 (x) x 0.5 (y) x 1.7 (z) m times person_scale, pacing
+///    in the free area in front of the refrigerator (x 1.57-2.30, y -1.11-0.35, which the camera
+///    sees when it looks straight ahead or right): a figure-of-eight walk, mainly across the view
+///    (along y), whose peak horizontal speed is exactly person_speed m/s; while it walks it bobs up
+///    and down (up to 0.4 m, less when the ceiling is near at large scales, at a mean vertical
+///    speed of 0.67 * person_speed m/s), leans sideways (rotation about the horizontal x axis,
+///    +-6 deg) and turns (+-6 deg about z). Its lowest point stays 1 cm or more above the floor.
+///  - "chair" (MotionKind::kSlide): a box 0.5 x 0.5 x 0.9 m times chair_scale standing on the
+///    floor (bottom exactly at z = 0) in the corner beyond the table (x 1.24-2.95, y 1.65-2.45,
+///    seen when the camera looks left), sliding back and forth mainly along x (peak speed exactly
+///    chair_speed m/s) and turning about the vertical axis (+-25 deg up to scale 1.2; less above,
+///    so that it fits the corner: +-15 deg at 1.3, +-9 deg at 1.4, where it only slides along x).
+///    It stops for an instant where it reverses (a frame may then count as not moving).
+/// At scale 1 and default speeds, over the default 300 frames, the person is in view (at least
+/// oracle_min_pixels) in 55% of the frames and the chair in 48% (the camera yaws by +-40 deg and
+/// little free floor lies 0.8 m away from it), one of them or both in 94%; see the measurements of
+/// tests/synth/dynamic_scene_test.cpp for other scales.
 Scene make_room_scene(const SynthOptions& options);
 
 /// The camera path: T_w_c for frames i = 0 .. frames - 1 at scene time t = i / fps, with
