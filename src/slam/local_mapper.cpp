@@ -122,6 +122,8 @@ void LocalMapper::insert_keyframe(const KeyFrameRequest& request) {
   kf.timestamp = request.frame.timestamp;
   kf.T_c_w = request.T_c_w;
   kf.features = request.frame.features;
+  kf.excluded_points = request.excluded_points;
+  kf.excluded_lines = request.excluded_lines;
   const map::KeyFrameId id = map_.add_keyframe(std::move(kf));
   for (std::size_t i = 0; i < request.landmarks.size(); ++i) {
     const map::PointId p = request.landmarks[i];
@@ -168,7 +170,7 @@ void LocalMapper::create_points(map::KeyFrameId id, const cv::Mat& color) {
   std::vector<std::pair<float, int>> by_depth;
   for (std::size_t i = 0; i < kf->features->points.size(); ++i) {
     const auto& f = kf->features->points[i];
-    if (f.has_depth() && kf->landmarks[i] == map::kNoId)
+    if (f.has_depth() && kf->landmarks[i] == map::kNoId && !kf->point_excluded(i))
       by_depth.emplace_back(f.depth, static_cast<int>(i));
   }
   std::sort(by_depth.begin(), by_depth.end());
@@ -197,7 +199,8 @@ void LocalMapper::create_lines(map::KeyFrameId id) {
   const SE3 T_w_c = kf->T_w_c();
   const auto& lines = kf->features->lines;
   for (std::size_t i = 0; i < lines.size(); ++i) {
-    if (!lines[i].has_depth || kf->line_landmarks[i] != map::kNoId) continue;
+    if (!lines[i].has_depth || kf->line_landmarks[i] != map::kNoId || kf->line_excluded(i))
+      continue;
     recent_lines_.push_back(
         map_.add_line(T_w_c * lines[i].start_c, T_w_c * lines[i].end_c, id, static_cast<int>(i)));
     kf = map_.keyframe(id);
@@ -277,6 +280,7 @@ int LocalMapper::fuse_lines_into(map::KeyFrameId target_id, const std::vector<ma
     const map::LineId lid = source[static_cast<std::size_t>(m.predicted)];
     const map::MapLine* ml = map_.line(lid);
     if (ml == nullptr || ml->observations.count(target_id) != 0) continue;
+    if (target->line_excluded(static_cast<std::size_t>(m.observed))) continue;
     const map::LineId existing = target->line_landmarks[static_cast<std::size_t>(m.observed)];
     if (existing == lid) continue;
     if (existing != map::kNoId) {
@@ -365,6 +369,7 @@ int LocalMapper::fuse_into(map::KeyFrameId target_id, const std::vector<map::Poi
     int best = 256;
     int best_idx = -1;
     for (int j : candidates) {
+      if (target->point_excluded(static_cast<std::size_t>(j))) continue;
       const auto& f = target->features->points[static_cast<std::size_t>(j)];
       double e2 = (f.keypoint.uv.cast<double>() - uv).squaredNorm();
       if (f.has_depth()) e2 += (f.u_right - ur) * (f.u_right - ur);

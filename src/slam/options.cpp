@@ -43,7 +43,8 @@ std::optional<std::string> TrackerOptions::check() const {
     return "tracker.plane_match_angle_deg must be in (0, 90)";
   if (!(plane_match_distance > 0.0)) return "tracker.plane_match_distance must be positive";
   if (!(on_plane_distance > 0.0)) return "tracker.on_plane_distance must be positive";
-  return pose.check();
+  if (auto e = pose.check()) return e;
+  return dynamics.check();
 }
 
 std::optional<std::string> MapperOptions::check() const {

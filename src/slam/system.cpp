@@ -1,5 +1,6 @@
 #include "mcslam/slam/system.hpp"
 
+#include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "mcslam/core/error.hpp"
@@ -25,6 +26,47 @@ System::System(const PinholeCamera& camera, const SystemOptions& options)
 
 System::~System() { finish(); }
 
+void System::set_detection_source(std::unique_ptr<DetectionSource> source, bool wait) {
+  detections_ = std::move(source);
+  wait_for_detections_ = wait;
+}
+
+cv::Mat System::undistort(const cv::Mat& rgb) const { return undistorter_->apply_rgb(rgb); }
+
+namespace {
+
+/// Boxes of the raw image in the undistorted image: the bounding box of 12 border points.
+std::vector<perception::Detection> undistort_boxes(const PinholeCamera& camera,
+                                                   std::vector<perception::Detection> boxes) {
+  if (!camera.has_distortion() || boxes.empty()) return boxes;
+  const cv::Matx33d K(camera.fx, 0, camera.cx, 0, camera.fy, camera.cy, 0, 0, 1);
+  const cv::Mat D(1, 5, CV_64F, const_cast<double*>(camera.distortion.data()));
+  std::vector<cv::Point2f> raw;
+  for (const auto& d : boxes)
+    for (int k = 0; k < 4; ++k) {
+      const float f = k / 3.0f;
+      raw.emplace_back(d.box.x + f * d.box.width, d.box.y);
+      raw.emplace_back(d.box.x + f * d.box.width, d.box.y + d.box.height);
+      raw.emplace_back(d.box.x, d.box.y + f * d.box.height);
+    }
+  std::vector<cv::Point2f> und;
+  cv::undistortPoints(raw, und, K, D, cv::noArray(), K);
+  for (std::size_t b = 0; b < boxes.size(); ++b) {
+    cv::Rect2f r(und[b * 12], cv::Size2f(0.f, 0.f));
+    float x0 = r.x, y0 = r.y, x1 = r.x, y1 = r.y;
+    for (std::size_t k = 0; k < 12; ++k) {
+      x0 = std::min(x0, und[b * 12 + k].x);
+      y0 = std::min(y0, und[b * 12 + k].y);
+      x1 = std::max(x1, und[b * 12 + k].x);
+      y1 = std::max(y1, und[b * 12 + k].y);
+    }
+    boxes[b].box = cv::Rect2f(x0, y0, x1 - x0, y1 - y0);
+  }
+  return boxes;
+}
+
+}  // namespace
+
 FrameResult System::process(const cv::Mat& rgb, const cv::Mat& depth, double timestamp,
                             std::optional<double> depth_timestamp) {
   FrameResult result;
@@ -42,6 +84,9 @@ FrameResult System::process(const cv::Mat& rgb, const cv::Mat& depth, double tim
     records_.push_back(record);
     return result;
   }
+
+  // The detector starts on this image now and runs while the features are extracted.
+  if (detections_ && rgb.channels() == 3) detections_->submit(result.frame_id, timestamp, rgb);
 
   Stopwatch watch;
   cv::Mat gray;
@@ -62,8 +107,24 @@ FrameResult System::process(const cv::Mat& rgb, const cv::Mat& depth, double tim
     motion.readout_time = camera_.readout_time;
     motion.angular_velocity = tracker_->angular_velocity();
   }
-  const Frame frame =
+  Frame frame =
       builder_->build(result.frame_id, timestamp, gray, undistorted_depth, motion, &result.times);
+  if (detections_) {
+    watch.restart();
+    const bool wait = wait_for_detections_ || options_.sequential;
+    if (auto found = detections_->collect(result.frame_id, wait)) {
+      auto objects = std::make_shared<FrameObjects>();
+      objects->boxes = undistort_boxes(camera_, std::move(found->boxes));
+      objects->fresh = found->frame_id == result.frame_id;
+      objects->age = static_cast<int>(result.frame_id - found->frame_id);
+      frame.objects = std::move(objects);
+      result.detections_used = true;
+      result.detections_fresh = frame.objects->fresh;
+      result.detections_age = frame.objects->age;
+      if (frame.objects->fresh && found->detect_ms > 0.0) result.detect_ms = found->detect_ms;
+    }
+    result.times.add("detection_wait", watch.elapsed_ms());
+  }
   result.features = static_cast<int>(frame.features->points.size());
   result.lines = static_cast<int>(frame.features->lines.size());
   result.planes = static_cast<int>(frame.features->planes.size());
@@ -78,6 +139,12 @@ FrameResult System::process(const cv::Mat& rgb, const cv::Mat& depth, double tim
   result.line_matches = outcome.line_matches;
   result.line_inliers = outcome.line_inliers;
   result.plane_inliers = outcome.plane_inliers;
+  result.frame_features = frame.features;
+  result.point_labels = std::move(outcome.point_labels);
+  result.line_labels = std::move(outcome.line_labels);
+  result.objects = std::move(outcome.objects);
+  result.constrained_point_residuals = outcome.constrained_point_residuals;
+  result.constrained_line_residuals = outcome.constrained_line_residuals;
   if (outcome.state == TrackingState::kOk) {
     result.T_w_c = outcome.T_c_w.inverse();
     record.tracked = true;

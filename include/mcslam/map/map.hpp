@@ -40,6 +40,16 @@ struct KeyFrame {
   /// The same for the frame's line segments (features->lines) and planes (features->planes).
   std::vector<LineId> line_landmarks;
   std::vector<PlaneId> plane_landmarks;
+  /// Features on moving (dynamic or constrained) objects, 1 per excluded point / segment: no
+  /// landmark is created or fused there. Empty when the keyframe saw no moving object.
+  std::vector<std::uint8_t> excluded_points;
+  std::vector<std::uint8_t> excluded_lines;
+  bool point_excluded(std::size_t i) const {
+    return i < excluded_points.size() && excluded_points[i] != 0;
+  }
+  bool line_excluded(std::size_t i) const {
+    return i < excluded_lines.size() && excluded_lines[i] != 0;
+  }
   /// Covisibility: number of landmarks shared with each other keyframe (only weights > 0).
   std::unordered_map<KeyFrameId, int> covisibility;
 

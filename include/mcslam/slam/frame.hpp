@@ -13,14 +13,26 @@
 #include "mcslam/features/lines.hpp"
 #include "mcslam/features/orb.hpp"
 #include "mcslam/features/planes.hpp"
+#include "mcslam/perception/detection.hpp"
 #include "mcslam/slam/options.hpp"
 
 namespace mcslam::slam {
+
+/// Detected objects of a frame, in undistorted pixel coordinates (the features' frame).
+struct FrameObjects {
+  std::vector<perception::Detection> boxes;
+  /// Detected on this frame's own image; false: the newest boxes of an earlier frame (the
+  /// detector was still busy), `age` frames old.
+  bool fresh = true;
+  int age = 0;
+};
 
 struct Frame {
   std::uint64_t id = 0;
   double timestamp = 0.0;
   std::shared_ptr<const features::FrameFeatures> features;
+  /// Null when no detector or detections file is in use (geometry only).
+  std::shared_ptr<const FrameObjects> objects;
 };
 
 /// Known camera motion around the frame, used to undo capture-time effects.

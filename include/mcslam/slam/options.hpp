@@ -8,6 +8,7 @@
 #include "mcslam/features/planes.hpp"
 #include "mcslam/optim/bundle_adjustment.hpp"
 #include "mcslam/optim/pose_optimizer.hpp"
+#include "mcslam/slam/dynamics.hpp"
 
 namespace mcslam::slam {
 
@@ -81,6 +82,9 @@ struct TrackerOptions {
   double on_plane_distance = 0.02;
 
   optim::PoseOptimizerOptions pose;
+  /// Dynamic objects (Algorithm 1) and moving constraints (Algorithm 2), when frames carry
+  /// detections.
+  DynamicsOptions dynamics;
 
   std::optional<std::string> check() const;
 };

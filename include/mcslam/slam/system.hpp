@@ -15,6 +15,7 @@
 #include "mcslam/core/timing.hpp"
 #include "mcslam/core/trajectory.hpp"
 #include "mcslam/map/map.hpp"
+#include "mcslam/slam/detection_source.hpp"
 #include "mcslam/slam/options.hpp"
 #include "mcslam/slam/tracker.hpp"
 
@@ -43,6 +44,18 @@ struct FrameResult {
   int plane_inliers = 0;
   std::optional<SE3> T_w_c;  // when tracked
   StageTimes times;          // what the caller waited for, per stage
+  /// The frame's features (undistorted pixels) and what each one is, for overlays.
+  std::shared_ptr<const features::FrameFeatures> frame_features;
+  std::vector<FeatureLabel> point_labels;
+  std::vector<FeatureLabel> line_labels;
+  /// Objects with the decisions of Algorithms 1 and 2 (boxes in undistorted pixels).
+  std::vector<ObjectReport> objects;
+  bool detections_used = false;  // the frame had boxes (its own or an earlier frame's)
+  bool detections_fresh = false;
+  int detections_age = 0;           // frames between the detected image and this one
+  std::optional<double> detect_ms;  // the forward pass that produced a fresh detection
+  int constrained_point_residuals = 0;
+  int constrained_line_residuals = 0;
 };
 
 class System {
@@ -60,6 +73,15 @@ class System {
   /// difference is compensated with the tracked motion when compensate_depth_time is on.
   FrameResult process(const cv::Mat& rgb, const cv::Mat& depth, double timestamp,
                       std::optional<double> depth_timestamp = std::nullopt);
+
+  /// Boxes for every later frame come from `source` (a model on its own thread, or a file);
+  /// without one the system runs on geometry alone. With `wait`, each frame waits for its own
+  /// detection (deterministic; the default in sequential mode).
+  void set_detection_source(std::unique_ptr<DetectionSource> source, bool wait);
+  const DetectionSource* detection_source() const { return detections_.get(); }
+
+  /// The colour image as the features see it (undistorted), for drawing.
+  cv::Mat undistort(const cv::Mat& rgb) const;
 
   /// Lets the mapper finish its queue. Call before reading the final trajectory.
   void finish();
@@ -92,6 +114,8 @@ class System {
   std::unique_ptr<map::Map> map_;
   std::unique_ptr<Tracker> tracker_;
   std::unique_ptr<LocalMapper> mapper_;
+  std::unique_ptr<DetectionSource> detections_;
+  bool wait_for_detections_ = true;
   std::vector<FrameRecord> records_;
   std::uint64_t next_frame_id_ = 0;
   bool finished_ = false;

@@ -1,0 +1,90 @@
+#include "mcslam/slam/detection_source.hpp"
+
+#include <filesystem>
+#include <sstream>
+
+#include "mcslam/core/timing.hpp"
+
+namespace mcslam::slam {
+
+FileDetectionSource::FileDetectionSource(perception::DetectionsFile file, std::string path)
+    : file_(std::move(file)), path_(std::move(path)) {}
+
+void FileDetectionSource::submit(std::uint64_t frame_id, double timestamp, const cv::Mat&) {
+  if (const perception::FrameDetections* f = file_.find(timestamp))
+    newest_ = TimedDetections{frame_id, f->detections, 0.0};
+}
+
+std::optional<TimedDetections> FileDetectionSource::collect(std::uint64_t, bool) { return newest_; }
+
+std::string FileDetectionSource::describe() const {
+  return "detections file " + path_ + " (" + std::to_string(file_.frames.size()) + " frames)";
+}
+
+ModelDetectionSource::ModelDetectionSource(perception::Detector detector)
+    : detector_(std::move(detector)) {
+  worker_ = std::thread([this] { run(); });
+}
+
+ModelDetectionSource::~ModelDetectionSource() {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    stop_ = true;
+  }
+  cv_.notify_all();
+  worker_.join();
+}
+
+void ModelDetectionSource::submit(std::uint64_t frame_id, double, const cv::Mat& bgr) {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (job_ || running_) return;  // busy: this frame is skipped
+    job_.emplace(frame_id, bgr);
+  }
+  cv_.notify_all();
+}
+
+std::optional<TimedDetections> ModelDetectionSource::collect(std::uint64_t frame_id, bool wait) {
+  std::unique_lock<std::mutex> lock(mutex_);
+  if (wait) {
+    cv_.wait(lock, [&] {
+      const bool pending = (job_ && job_->first == frame_id) || (running_ && *running_ == frame_id);
+      return !pending || stop_;
+    });
+  }
+  return newest_;
+}
+
+std::string ModelDetectionSource::describe() const {
+  std::ostringstream s;
+  s << "model " << std::filesystem::path(detector_.path()).filename().string() << " ("
+    << perception::to_string(detector_.format()) << ", " << detector_.input_size().width << "x"
+    << detector_.input_size().height << ")";
+  return s.str();
+}
+
+void ModelDetectionSource::run() {
+  for (;;) {
+    std::pair<std::uint64_t, cv::Mat> job;
+    {
+      std::unique_lock<std::mutex> lock(mutex_);
+      cv_.wait(lock, [&] { return job_.has_value() || stop_; });
+      if (stop_) return;
+      job = std::move(*job_);
+      job_.reset();
+      running_ = job.first;
+    }
+    Stopwatch watch;
+    // detect() never throws for image content.
+    std::vector<perception::Detection> boxes = detector_.detect(job.second);
+    const double ms = watch.elapsed_ms();
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      newest_ = TimedDetections{job.first, std::move(boxes), ms};
+      running_.reset();
+    }
+    cv_.notify_all();
+  }
+}
+
+}  // namespace mcslam::slam
