@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <iostream>
 
+#include "mcslam/app/detect.hpp"
 #include "mcslam/app/run.hpp"
 #include "mcslam/core/error.hpp"
 #include "mcslam/eval/bonn.hpp"
@@ -20,7 +21,9 @@ int run_command(const mcslam::app::RunRequest& request, bool quiet) {
     std::cout << mcslam::app::summary_text(summary);
     std::cout << "results in " << request.output_dir
               << " (trajectory.txt, keyframes.txt, timings.csv, summary.json, config.yaml"
-              << (request.save_map ? ", map.ply, map.json" : "") << ")\n";
+              << (request.save_map ? ", map.ply, map.json" : "")
+              << (summary["dynamics"]["frames_with_boxes"].get<int>() > 0 ? ", objects.json" : "")
+              << (request.save_overlays ? ", overlays/" : "") << ")\n";
   }
   return 0;
 }
@@ -59,6 +62,15 @@ int synth_command(const std::string& output, const mcslam::synth::SynthOptions& 
   return 0;
 }
 
+int detect_command(const mcslam::app::DetectRequest& request, bool quiet) {
+  const nlohmann::json summary = mcslam::app::detect_images(request);
+  if (!quiet) {
+    std::cout << mcslam::app::detect_summary_text(summary);
+    std::cout << "results in " << request.output_dir << " (detections.json, annotated/)\n";
+  }
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -84,6 +96,21 @@ int main(int argc, char** argv) {
   run_cmd->add_option("--features", run.features,
                       "Feature kinds to use: a comma-separated subset of points,lines,planes "
                       "(default: the configuration's features.*, all on)");
+  run_cmd->add_option("--model", run.model,
+                      "ONNX object detector (Ultralytics YOLOv8/YOLO11 or YOLOX export) for "
+                      "dynamic-object handling");
+  run_cmd->add_option("--detections", run.detections,
+                      "Per-frame boxes from a detections file (JSON, see README) instead of a "
+                      "model");
+  run_cmd->add_option("--confidence", run.confidence, "Detector confidence threshold");
+  run_cmd->add_flag("--wait-detections", run.wait_for_detections,
+                    "Each frame waits for its own detection (default only with --sequential)");
+  run_cmd->add_flag("--no-dynamics", run.no_dynamics,
+                    "Keep the boxes but do not exclude dynamic objects (ablation)");
+  run_cmd->add_flag("--no-constraints", run.no_constraints,
+                    "Exclude dynamic objects but skip the moving-constraint check (ablation)");
+  run_cmd->add_flag("--save-overlays", run.save_overlays,
+                    "Write annotated frames to overlays/ (points, lines, objects and decisions)");
   run_cmd->add_flag("--quiet,-q", quiet, "No progress bar and no summary");
 
   std::string gt_path, est_path;
@@ -111,7 +138,33 @@ int main(int argc, char** argv) {
                         "Rolling-shutter readout time in seconds (0 = global shutter)");
   synth_cmd->add_option("--width", synth_options.width, "Image width");
   synth_cmd->add_option("--height", synth_options.height, "Image height");
+  auto& dyn = synth_options.dynamic;
+  bool no_person = false, no_chair = false;
+  synth_cmd->add_flag("--dynamic", dyn.enabled,
+                      "Add a person moving freely and a chair sliding on the floor (writes "
+                      "objects.json with their ground truth)");
+  synth_cmd->add_flag("--no-person", no_person, "Dynamic scene without the person");
+  synth_cmd->add_flag("--no-chair", no_chair, "Dynamic scene without the chair");
+  synth_cmd->add_option("--person-speed", dyn.person_speed, "Person's peak speed (m/s)");
+  synth_cmd->add_option("--chair-speed", dyn.chair_speed, "Chair's peak speed (m/s)");
+  synth_cmd->add_option("--person-scale", dyn.person_scale, "Person's size factor");
+  synth_cmd->add_option("--chair-scale", dyn.chair_scale, "Chair's size factor");
+  synth_cmd->add_option("--start-time", dyn.start_time, "Scene time (s) when the objects start");
   synth_cmd->add_flag("--quiet,-q", quiet, "No progress");
+
+  mcslam::app::DetectRequest detect;
+  auto* detect_cmd = cli.add_subcommand(
+      "detect", "Run the object detector on an image or a sequence (writes detections.json)");
+  detect_cmd->add_option("input", detect.input, "Image file, or sequence folder with rgb.txt")
+      ->required();
+  detect_cmd->add_option("--model,-m", detect.model, "ONNX detector (YOLOv8/YOLO11 or YOLOX)")
+      ->required();
+  detect_cmd->add_option("--output,-o", detect.output_dir, "Folder for the results")->required();
+  detect_cmd->add_option("--confidence", detect.options.confidence,
+                         "Minimum detection score in (0, 1) (default 0.35)");
+  detect_cmd->add_option("--max-frames", detect.max_frames, "Process at most N images")
+      ->check(CLI::NonNegativeNumber);
+  detect_cmd->add_flag("--quiet,-q", quiet, "No progress bar and no summary");
 
   CLI11_PARSE(cli, argc, argv);
   try {
@@ -123,9 +176,15 @@ int main(int argc, char** argv) {
       run.progress = !quiet && isatty(fileno(stderr));
       return run_command(run, quiet);
     }
+    if (detect_cmd->parsed()) {
+      detect.progress = !quiet && isatty(fileno(stderr));
+      return detect_command(detect, quiet);
+    }
     if (eval_cmd->parsed()) return eval_command(gt_path, est_path, bonn, json, max_dt);
     if (synth_cmd->parsed()) {
       if (texture == "low") synth_options.texture = mcslam::synth::TextureLevel::kLow;
+      if (no_person) dyn.person = false;
+      if (no_chair) dyn.chair = false;
       synth_options.width = synth_options.width;
       if (synth_options.width != 640 || synth_options.height != 480) {
         synth_options.cx = (synth_options.width - 1) / 2.0;

@@ -9,6 +9,8 @@
 #include <iomanip>
 #include <iostream>
 #include <map>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 #include <sstream>
 
 #include "mcslam/core/error.hpp"
@@ -18,6 +20,8 @@
 #include "mcslam/io/sequence.hpp"
 #include "mcslam/io/trajectory_io.hpp"
 #include "mcslam/map/export.hpp"
+#include "mcslam/perception/detection.hpp"
+#include "mcslam/perception/detector.hpp"
 #include "mcslam/slam/config.hpp"
 #include "mcslam/slam/system.hpp"
 
@@ -70,7 +74,108 @@ std::string format_tum_keyframes(const Trajectory& keyframes) {
   return s.str();
 }
 
+/// The detection source the request asks for, or null (geometry only).
+std::unique_ptr<slam::DetectionSource> make_detection_source(const RunRequest& request,
+                                                             const PinholeCamera& camera) {
+  if (request.model && request.detections)
+    throw InputError("--model and --detections exclude each other: give one source of boxes");
+  if (request.detections) {
+    perception::DetectionsFile file = perception::read_detections(*request.detections);
+    if ((file.image_width && *file.image_width != camera.width) ||
+        (file.image_height && *file.image_height != camera.height))
+      throw InputError(file_error(*request.detections,
+                                  "boxes are for " + std::to_string(file.image_width.value_or(0)) +
+                                      "x" + std::to_string(file.image_height.value_or(0)) +
+                                      " images but the camera is " + std::to_string(camera.width) +
+                                      "x" + std::to_string(camera.height)));
+    return std::make_unique<slam::FileDetectionSource>(std::move(file), *request.detections);
+  }
+  if (request.model) {
+    perception::DetectorOptions options;
+    if (request.confidence) options.confidence = *request.confidence;
+    if (auto e = options.check()) throw InputError("--confidence: " + *e);
+    return std::make_unique<slam::ModelDetectionSource>(
+        perception::Detector(*request.model, options));
+  }
+  return nullptr;
+}
+
+nlohmann::json objects_json(const slam::FrameResult& r) {
+  nlohmann::json objects = nlohmann::json::array();
+  for (const slam::ObjectReport& o : r.objects) {
+    const auto& b = o.detection.box;
+    nlohmann::json j = {{"track", o.track_id},
+                        {"class", o.detection.class_name},
+                        {"class_id", o.detection.class_id},
+                        {"score", o.detection.score},
+                        {"box", {b.x, b.y, b.width, b.height}},
+                        {"state", slam::to_string(o.state)},
+                        {"matches", o.decision.matches},
+                        {"own_f", o.decision.own_f},
+                        {"ransac_inliers", o.decision.ransac_inliers},
+                        {"counted", o.decision.counted},
+                        {"outliers", o.decision.outliers},
+                        {"outlier_ratio", o.decision.outlier_ratio},
+                        {"median_distance_px", o.decision.median_distance},
+                        {"decided", o.decision.decided}};
+    if (o.constraint.plane >= 0 || o.constraint.points > 0)
+      j["constraint"] = {{"constrained", o.constraint.constrained},
+                         {"plane", o.constraint.plane},
+                         {"distance_change_m", o.constraint.distance_change},
+                         {"angle_change_deg", o.constraint.angle_change_deg},
+                         {"points", o.constraint.points},
+                         {"lines", o.constraint.lines}};
+    objects.push_back(j);
+  }
+  return objects;
+}
+
+int count_labels(const std::vector<slam::FeatureLabel>& labels, slam::FeatureLabel label) {
+  return static_cast<int>(std::count(labels.begin(), labels.end(), label));
+}
+
 }  // namespace
+
+void draw_overlay(cv::Mat& bgr, const slam::FrameResult& r) {
+  if (bgr.empty() || bgr.type() != CV_8UC3 || !r.frame_features) return;
+  const cv::Scalar green(0, 200, 0), red(0, 0, 230), yellow(0, 220, 255), grey(150, 150, 150),
+      white(255, 255, 255);
+  const auto& f = *r.frame_features;
+  for (std::size_t i = 0; i < f.lines.size(); ++i) {
+    const auto label = i < r.line_labels.size() ? r.line_labels[i] : slam::FeatureLabel::kStatic;
+    const cv::Scalar c = label == slam::FeatureLabel::kStatic        ? red
+                         : label == slam::FeatureLabel::kConstrained ? yellow
+                                                                     : grey;
+    cv::line(bgr, cv::Point2f(f.lines[i].start.x(), f.lines[i].start.y()),
+             cv::Point2f(f.lines[i].end.x(), f.lines[i].end.y()), c, 1, cv::LINE_AA);
+  }
+  for (std::size_t i = 0; i < f.points.size(); ++i) {
+    const auto label = i < r.point_labels.size() ? r.point_labels[i] : slam::FeatureLabel::kStatic;
+    const cv::Scalar c = label == slam::FeatureLabel::kStatic        ? green
+                         : label == slam::FeatureLabel::kConstrained ? yellow
+                                                                     : grey;
+    cv::circle(bgr, cv::Point2f(f.points[i].keypoint.uv.x(), f.points[i].keypoint.uv.y()), 2, c, -1,
+               cv::LINE_AA);
+  }
+  for (const slam::ObjectReport& o : r.objects) {
+    const cv::Scalar c = o.state == slam::ObjectState::kDynamic       ? red
+                         : o.state == slam::ObjectState::kConstrained ? yellow
+                                                                      : white;
+    const cv::Rect box(cv::Point(cvRound(o.detection.box.x), cvRound(o.detection.box.y)),
+                       cv::Size(cvRound(o.detection.box.width), cvRound(o.detection.box.height)));
+    cv::rectangle(bgr, box, c, o.state == slam::ObjectState::kStatic ? 1 : 2);
+    std::ostringstream text;
+    text << o.detection.class_name << ' ' << std::fixed << std::setprecision(2) << o.detection.score
+         << ' ' << slam::to_string(o.state);
+    int baseline = 0;
+    const cv::Size size = cv::getTextSize(text.str(), cv::FONT_HERSHEY_SIMPLEX, 0.45, 1, &baseline);
+    const cv::Point origin(box.x, std::max(size.height + 2, box.y - 2));
+    cv::rectangle(bgr, origin + cv::Point(0, 2), origin + cv::Point(size.width, -size.height - 2),
+                  c, cv::FILLED);
+    cv::putText(bgr, text.str(), origin, cv::FONT_HERSHEY_SIMPLEX, 0.45, cv::Scalar(0, 0, 0), 1,
+                cv::LINE_AA);
+  }
+}
 
 void apply_feature_list(const std::string& list, bool& points, bool& lines, bool& planes) {
   points = lines = planes = false;
@@ -113,9 +218,27 @@ nlohmann::json run_sequence(const RunRequest& request) {
     if (is_bonn(request.sequence_dir)) groundtruth = eval::bonn_marker_to_camera(*groundtruth);
   }
 
+  if (request.no_dynamics) config.options.tracker.dynamics.enabled = false;
+  if (request.no_constraints) config.options.tracker.dynamics.constraints = false;
+  std::unique_ptr<slam::DetectionSource> detection_source =
+      make_detection_source(request, config.camera);
+  if (!detection_source)
+    std::cerr << "mcslam: warning: no --model or --detections given: running on geometry only, "
+                 "without dynamic-object handling\n";
+  if (request.save_overlays) io::ensure_directory((out / "overlays").string());
+
   std::size_t total = sequence.frames().size();
   if (request.max_frames > 0) total = std::min(total, static_cast<std::size_t>(request.max_frames));
   slam::System system(config.camera, config.options);
+  std::string detection_description;
+  if (detection_source) {
+    detection_description = detection_source->describe();
+    system.set_detection_source(std::move(detection_source), request.wait_for_detections);
+  }
+  nlohmann::json object_frames = nlohmann::json::array();
+  std::vector<double> detect_ms, detection_age;
+  std::map<std::string, int> object_states;  // box-frames per state
+  int frames_with_boxes = 0, fresh_frames = 0;
   ProgressBar bar(request.progress, total);
 
   // Stage names in first-seen order, and per-frame rows.
@@ -155,6 +278,48 @@ nlohmann::json run_sequence(const RunRequest& request) {
            << slam::to_string(r.state) << ',' << r.features << ',' << r.lines << ',' << r.planes
            << ',' << r.matches << ',' << r.inliers << ',' << r.line_matches << ',' << r.line_inliers
            << ',' << r.plane_inliers << ',' << (r.keyframe ? 1 : 0);
+    const int dynamic_points = count_labels(r.point_labels, slam::FeatureLabel::kDynamic);
+    const int constrained_points = count_labels(r.point_labels, slam::FeatureLabel::kConstrained);
+    int dynamic_objects = 0, constrained_objects = 0;
+    for (const auto& o : r.objects) {
+      dynamic_objects += o.state == slam::ObjectState::kDynamic ? 1 : 0;
+      constrained_objects += o.state == slam::ObjectState::kConstrained ? 1 : 0;
+      ++object_states[slam::to_string(o.state)];
+    }
+    prefix << ',' << r.objects.size() << ',' << dynamic_objects << ',' << constrained_objects << ','
+           << dynamic_points << ',' << constrained_points << ',' << r.constrained_point_residuals
+           << ',' << r.constrained_line_residuals;
+    if (r.detections_used) {
+      ++frames_with_boxes;
+      fresh_frames += r.detections_fresh ? 1 : 0;
+      detection_age.push_back(r.detections_age);
+      if (r.detect_ms) detect_ms.push_back(*r.detect_ms);
+      object_frames.push_back(
+          {{"frame", r.frame_id},
+           {"timestamp", r.timestamp},
+           {"fresh", r.detections_fresh},
+           {"age", r.detections_age},
+           {"dynamic_points", dynamic_points},
+           {"constrained_points", constrained_points},
+           {"dynamic_lines", count_labels(r.line_labels, slam::FeatureLabel::kDynamic)},
+           {"constrained_lines", count_labels(r.line_labels, slam::FeatureLabel::kConstrained)},
+           {"constrained_residuals", {r.constrained_point_residuals, r.constrained_line_residuals}},
+           {"objects", objects_json(r)}});
+      counts["dynamic_points"].push_back(dynamic_points);
+      counts["constrained_points"].push_back(constrained_points);
+    }
+    if (request.save_overlays) {
+      cv::Mat overlay = system.undistort(images.rgb);
+      if (overlay.channels() == 3) {
+        overlay = overlay.clone();
+        draw_overlay(overlay, r);
+        char name[32];
+        std::snprintf(name, sizeof(name), "%06llu.jpg",
+                      static_cast<unsigned long long>(r.frame_id));
+        const std::string path = (out / "overlays" / name).string();
+        if (!cv::imwrite(path, overlay)) throw InputError(file_error(path, "cannot write"));
+      }
+    }
     counts["points"].push_back(r.features);
     counts["lines"].push_back(r.lines);
     counts["planes"].push_back(r.planes);
@@ -178,7 +343,9 @@ nlohmann::json run_sequence(const RunRequest& request) {
                         format_tum_keyframes(system.keyframe_trajectory()));
   std::ostringstream csv;
   csv << "frame,timestamp,state,points,lines,planes,point_matches,point_inliers,line_matches,"
-         "line_inliers,plane_inliers,keyframe";
+         "line_inliers,plane_inliers,keyframe,objects,dynamic_objects,constrained_objects,"
+         "dynamic_points,constrained_points,constrained_point_residuals,"
+         "constrained_line_residuals";
   for (const auto& name : stage_names) csv << ',' << name << "_ms";
   csv << ",total_ms\n";
   for (std::size_t i = 0; i < frame_prefix.size(); ++i) {
@@ -225,6 +392,24 @@ nlohmann::json run_sequence(const RunRequest& request) {
     per_frame[name] = {{"median", st.median}, {"mean", st.mean}, {"max", st.max}};
   }
   summary["per_frame_counts"] = per_frame;
+  {
+    nlohmann::json d;
+    d["source"] = detection_description.empty() ? "none (geometry only)" : detection_description;
+    d["enabled"] = config.options.tracker.dynamics.enabled && !detection_description.empty();
+    d["constraints"] = config.options.tracker.dynamics.constraints;
+    d["frames_with_boxes"] = frames_with_boxes;
+    d["fresh_frames"] = fresh_frames;
+    d["fresh_ratio"] =
+        frames_with_boxes == 0 ? 0.0 : static_cast<double>(fresh_frames) / frames_with_boxes;
+    d["median_age_frames"] = compute_stats(detection_age).median;
+    const SampleStats det = compute_stats(detect_ms);
+    d["detector_ms"] = {{"median", det.median}, {"p95", det.p95}, {"count", det.count}};
+    d["object_frames"] = object_states;  // box-frames per state
+    summary["dynamics"] = d;
+    if (frames_with_boxes > 0)
+      io::write_file_atomic((out / "objects.json").string(),
+                            nlohmann::json({{"frames", object_frames}}).dump(1) + "\n");
+  }
   summary["wall_time_s"] = wall_s;
   summary["frames_per_second"] = wall_s > 0 ? total / wall_s : 0.0;
   summary["peak_rss_mib"] = peak_rss_mib();
@@ -285,6 +470,15 @@ std::string summary_text(const nlohmann::json& s) {
     << s["stages"]["tracking_total"]["median_ms"].get<double>() << " ms, p95 "
     << s["stages"]["tracking_total"]["p95_ms"].get<double>() << " ms; peak memory "
     << std::setprecision(0) << s["peak_rss_mib"].get<double>() << " MiB\n";
+  if (s.contains("dynamics") && s["dynamics"]["frames_with_boxes"].get<int>() > 0) {
+    const auto& d = s["dynamics"];
+    o << "objects: " << d["source"].get<std::string>() << "; boxes on "
+      << d["frames_with_boxes"].get<int>() << " frames (" << std::setprecision(0)
+      << 100.0 * d["fresh_ratio"].get<double>() << "% fresh)";
+    for (const auto& [state, n] : d["object_frames"].items())
+      o << ", " << state << " " << n.get<int>();
+    o << "\n";
+  }
   if (s.contains("ate_rmse_m"))
     o << "ATE RMSE " << std::setprecision(4) << s["ate_rmse_m"].get<double>() << " m over "
       << s["eval"]["matched"].get<int>() << " poses\n";

@@ -505,3 +505,73 @@ TEST(CliSynth, WritesASequenceThatRunReads) {
 }
 
 }  // namespace
+
+// --- objects: detections, overlays, errors -----------------------------------------------------
+
+namespace {
+
+TEST(CliRunObjects, DetectionsFileGivesObjectsJsonAndOverlays) {
+  const fs::path out = root() / "out_objects";
+  const fs::path detections = main_sequence() / "detections.json";
+  ASSERT_TRUE(fs::is_regular_file(detections)) << "synth writes the oracle boxes";
+  const CliResult r = run_cli("run " + quote(main_sequence().string()) + " --output " +
+                              quote(out.string()) + " --sequential --max-frames 15 --detections " +
+                              quote(detections.string()) + " --save-overlays -q");
+  ASSERT_EQ(r.exit_code, 0) << r;
+  EXPECT_EQ(r.err.find("geometry only"), std::string::npos) << r;
+  const nlohmann::json objects = read_json(out / "objects.json");
+  ASSERT_EQ(objects["frames"].size(), 15u);
+  bool any_object = false;
+  for (const auto& f : objects["frames"])
+    for (const auto& o : f["objects"]) {
+      any_object = true;
+      EXPECT_EQ(o["state"].get<std::string>(), "static") << "the room's objects do not move";
+      EXPECT_EQ(o["box"].size(), 4u);
+    }
+  EXPECT_TRUE(any_object);
+  const nlohmann::json summary = read_json(out / "summary.json");
+  EXPECT_EQ(summary["dynamics"]["frames_with_boxes"].get<int>(), 15);
+  EXPECT_NE(summary["dynamics"]["source"].get<std::string>().find("detections file"),
+            std::string::npos);
+  EXPECT_NE(lines_of(out / "timings.csv").front().find("dynamic_points"), std::string::npos);
+  const cv::Mat overlay = cv::imread((out / "overlays" / "000010.jpg").string());
+  EXPECT_EQ(overlay.cols, 640);
+  EXPECT_EQ(overlay.rows, 480);
+}
+
+TEST(CliRunObjects, WithoutBoxesWarnsOnceAndRuns) {
+  const fs::path out = root() / "out_no_boxes";
+  const CliResult r = run_cli("run " + quote(main_sequence().string()) + " --output " +
+                              quote(out.string()) + " --sequential --max-frames 3 -q");
+  ASSERT_EQ(r.exit_code, 0) << r;
+  const auto first = r.err.find("geometry only");
+  ASSERT_NE(first, std::string::npos) << r;
+  EXPECT_EQ(r.err.find("geometry only", first + 1), std::string::npos) << r;
+  EXPECT_FALSE(fs::exists(out / "objects.json"));
+}
+
+TEST(CliRunObjects, BadBoxSourcesAreInputErrors) {
+  const std::string seq = quote(main_sequence().string());
+  const fs::path det = main_sequence() / "detections.json";
+  const std::string out = " --output " + quote((root() / "out_bad_boxes").string()) + " -q";
+  expect_input_error(run_cli("run " + seq + out + " --detections " + quote(det.string()) +
+                             " --model " + quote(det.string())),
+                     {"exclude each other"});
+  const fs::path garbage = root() / "garbage_detections.json";
+  write_file(garbage, "{ not json");
+  expect_input_error(run_cli("run " + seq + out + " --detections " + quote(garbage.string())),
+                     {garbage.string(), "not valid JSON"});
+  const fs::path small = root() / "small_detections.json";
+  write_file(small,
+             "{\"format\": \"mcslam-detections\", \"version\": 1, \"image_width\": 320, "
+             "\"image_height\": 240, \"frames\": []}");
+  expect_input_error(run_cli("run " + seq + out + " --detections " + quote(small.string())),
+                     {small.string(), "320x240"});
+  expect_input_error(run_cli("run " + seq + out + " --model " + quote(det.string())),
+                     {det.string()});
+  const fs::path missing = root() / "no_such_model.onnx";
+  expect_input_error(run_cli("run " + seq + out + " --model " + quote(missing.string())),
+                     {missing.string()});
+}
+
+}  // namespace

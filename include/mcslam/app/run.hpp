@@ -6,6 +6,8 @@
 #include <optional>
 #include <string>
 
+#include "mcslam/slam/system.hpp"
+
 namespace mcslam::app {
 
 struct RunRequest {
@@ -24,15 +26,35 @@ struct RunRequest {
   /// Feature kinds to use, overriding the configuration: a comma-separated subset of
   /// "points,lines,planes".
   std::optional<std::string> features;
+  /// Object boxes: an ONNX detector model (YOLOv8/YOLO11 or YOLOX export), or a detections file
+  /// (perception/detection.hpp); at most one. Without either, geometry only (one warning).
+  std::optional<std::string> model;
+  std::optional<std::string> detections;
+  /// Detector confidence threshold (default: DetectorOptions).
+  std::optional<double> confidence;
+  /// Each frame waits for its own detection (default: only in sequential mode).
+  bool wait_for_detections = false;
+  /// Turn Algorithm 1 / Algorithm 2 off while keeping the boxes (for ablations).
+  bool no_dynamics = false;
+  bool no_constraints = false;
+  /// Also write overlays/<frame>.jpg: annotated frames as in the paper's Fig. 7.
+  bool save_overlays = false;
 };
+
+/// Annotates an (undistorted) colour image as in the paper's Fig. 7: static points green, lines
+/// red, dynamic boxes red (their features grey), constrained boxes and their points yellow,
+/// static boxes white; class, score and state labels.
+void draw_overlay(cv::Mat& bgr, const slam::FrameResult& result);
 
 /// Parses a --features list ("points,lines,planes" or a subset); throws InputError naming the
 /// unknown kind.
 void apply_feature_list(const std::string& list, bool& points, bool& lines, bool& planes);
 
 /// Runs the sequence and writes into output_dir: trajectory.txt, trajectory_online.txt,
-/// keyframes.txt, timings.csv, summary.json, config.yaml, and with save_map map.ply and
-/// map.json. Returns the summary. Throws InputError for bad input.
+/// keyframes.txt, timings.csv, summary.json, config.yaml; with boxes objects.json (per frame:
+/// each object's box, track, state and the figures behind Algorithms 1 and 2); with save_map
+/// map.ply and map.json; with save_overlays overlays/. Returns the summary. Throws InputError
+/// for bad input.
 nlohmann::json run_sequence(const RunRequest& request);
 
 /// One line per figure a person wants to see after a run.
