@@ -7,7 +7,8 @@
 # and prints ATE per configuration and, per object, how often it was classified dynamic /
 # constrained on the frames where it moves (and static objects on any frame). With the real
 # data and model present it also runs freiburg1_rpy without and with the yolov8n_320 detector
-# (threaded: overlapped detection; and --wait-detections) for accuracy and speed.
+# (threaded: overlapped detection; and --wait-detections) for accuracy and speed, N times each.
+# Synthetic runs are sequential (deterministic), once per configuration.
 # Usage: scripts/bench_dynamic.sh [--runs N] [--output DIR] [--frames N]
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -51,16 +52,15 @@ run() {  # dir args...
     echo "bench_dynamic: run failed, see $dir.err" >&2
   fi
 }
+# Sequential runs are deterministic: one per configuration.
 for seq in "${seqs[@]}"; do
   name=$(basename "$seq")
   mkdir -p "$out/runs/$name"
-  for i in $(seq 1 "$runs"); do
-    echo "bench_dynamic: $name run $i/$runs" >&2
-    run "$out/runs/$name/geometry-$i" "$seq" --sequential
-    run "$out/runs/$name/alg1-$i" "$seq" --sequential --detections "$seq/detections.json" \
-      --no-constraints
-    run "$out/runs/$name/full-$i" "$seq" --sequential --detections "$seq/detections.json"
-  done
+  echo "bench_dynamic: $name" >&2
+  run "$out/runs/$name/geometry-1" "$seq" --sequential
+  run "$out/runs/$name/alg1-1" "$seq" --sequential --detections "$seq/detections.json" \
+    --no-constraints
+  run "$out/runs/$name/full-1" "$seq" --sequential --detections "$seq/detections.json"
 done
 
 real=../shared/data/tum/rgbd_dataset_freiburg1_rpy
@@ -77,7 +77,8 @@ fi
 
 python3 - "$out" "$runs" "${seqs[@]}" <<'PY'
 import json, os, statistics, sys
-out, runs, seqs = sys.argv[1], int(sys.argv[2]), sys.argv[3:]
+out, real_runs, seqs = sys.argv[1], int(sys.argv[2]), sys.argv[3:]
+runs = 1  # synthetic runs are sequential (deterministic)
 def med(xs): return statistics.median(xs) if xs else float('nan')
 def load(p):
     return json.load(open(p)) if os.path.exists(p) else None
@@ -146,7 +147,7 @@ if os.path.isdir(real):
     rows = ["| freiburg1_rpy | ATE RMSE m median (min-max) | tracked % | fps median | tracking ms median | detector ms median | fresh boxes % | dynamics ms median |",
             "|---|---|---|---|---|---|---|---|"]
     for config in ("geometry", "detector", "detector_wait"):
-        s = [x for x in (load(os.path.join(real, f"{config}-{i}", "summary.json")) for i in range(1, runs + 1)) if x]
+        s = [x for x in (load(os.path.join(real, f"{config}-{i}", "summary.json")) for i in range(1, real_runs + 1)) if x]
         if not s:
             rows.append(f"| {config} | failed | | | | | | |"); continue
         ate = [x["ate_rmse_m"] for x in s if "ate_rmse_m" in x]

@@ -298,6 +298,7 @@ nlohmann::json run_sequence(const RunRequest& request) {
           {{"frame", r.frame_id},
            {"timestamp", r.timestamp},
            {"fresh", r.detections_fresh},
+           {"epsilon_d_px", r.dynamics_threshold},
            {"age", r.detections_age},
            {"dynamic_points", dynamic_points},
            {"constrained_points", constrained_points},

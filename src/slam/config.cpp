@@ -104,6 +104,7 @@ std::vector<Field> mcslam_fields(PinholeCamera& c, SystemOptions& o) {
       {"tracker.pose.chi2_constraint", &t.pose.chi2_constraint},
       {"dynamics.enabled", &t.dynamics.enabled},
       {"dynamics.epipolar_threshold", &t.dynamics.epipolar_threshold},
+      {"dynamics.background_factor", &t.dynamics.background_factor},
       {"dynamics.outlier_ratio", &t.dynamics.outlier_ratio},
       {"dynamics.min_matches", &t.dynamics.min_matches},
       {"dynamics.min_reference_matches", &t.dynamics.min_reference_matches},

@@ -37,6 +37,7 @@ const char* to_string(ObjectState state) {
 
 std::optional<std::string> DynamicsOptions::check() const {
   if (!(epipolar_threshold > 0.0)) return "dynamics.epipolar_threshold must be > 0 (pixels)";
+  if (!(background_factor >= 0.0)) return "dynamics.background_factor must be >= 0";
   if (!(outlier_ratio > 0.0 && outlier_ratio < 1.0))
     return "dynamics.outlier_ratio must be in (0, 1)";
   if (min_matches < 8) return "dynamics.min_matches must be >= 8 (RANSAC needs 8 pairs)";

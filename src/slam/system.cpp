@@ -145,6 +145,7 @@ FrameResult System::process(const cv::Mat& rgb, const cv::Mat& depth, double tim
   result.objects = std::move(outcome.objects);
   result.constrained_point_residuals = outcome.constrained_point_residuals;
   result.constrained_line_residuals = outcome.constrained_line_residuals;
+  result.dynamics_threshold = outcome.dynamics_threshold;
   if (outcome.state == TrackingState::kOk) {
     result.T_w_c = outcome.T_c_w.inverse();
     record.tracked = true;

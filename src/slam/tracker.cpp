@@ -106,6 +106,9 @@ int Tracker::Associations::inlier_planes() const {
 
 namespace {
 
+/// Background features matched per frame to measure its noise (see adaptive_threshold).
+constexpr std::size_t kBackgroundSample = 150;
+
 /// The label of a feature in the boxes of `mask` (bit b: box b): dynamic when any of them is
 /// dynamic, else constrained when any is constrained, else static.
 FeatureLabel label_for(std::uint64_t mask, const std::vector<ObjectState>& state) {
@@ -169,8 +172,8 @@ TrackingOutcome Tracker::track(const Frame& frame, bool mapper_idle, std::size_t
       relocalised = ok;
     }
   };
-  // The first estimate leaves every feature in a box out; when that leaves too little (an
-  // object filling the view), all features go in and the robust loss has to cope.
+  // The first estimate leaves out the features of objects known to move; when that leaves too
+  // little (a moving object filling the view), all features go in and the robust loss copes.
   prepare_objects(frame);
   first_estimate();
   if (!ok && boxes_.any()) {
@@ -1127,7 +1130,6 @@ void Tracker::prepare_objects(const Frame& frame) {
       if (structural(b, f.plane)) continue;  // the floor or wall seen through the box
       boxes_.point_boxes[i] |= std::uint64_t{1} << b;
     }
-    boxes_.point_excluded[i] = boxes_.point_boxes[i] != 0 ? 1 : 0;
   }
   // A feature inside overlapping boxes (a person walking in front of a cupboard) belongs to the
   // object at its depth: the box whose median depth is closest to the feature's.
@@ -1185,8 +1187,18 @@ void Tracker::prepare_objects(const Frame& frame) {
     }
     boxes_.line_boxes[i] =
         nearest_box(boxes_.line_boxes[i], l.has_depth ? 0.5 * (l.start_c.z() + l.end_c.z()) : 0.0);
-    boxes_.line_excluded[i] = boxes_.line_boxes[i] != 0 ? 1 : 0;
   }
+  // The first estimate leaves out the features of objects known to move (from earlier frames,
+  // or a person just seen); those of objects known static take part, which keeps large static
+  // boxes (a desk, a monitor) from starving it. An object that starts moving now is a minority
+  // the robust loss rejects, and Algorithm 1 then takes it out of the final estimate.
+  std::vector<ObjectState> state(boxes.size());
+  for (std::size_t b = 0; b < boxes.size(); ++b)
+    state[b] = tracks_.tracks()[static_cast<std::size_t>(boxes_.tracks[b])].state;
+  for (std::size_t i = 0; i < features.points.size(); ++i)
+    boxes_.point_excluded[i] = label_for(boxes_.point_boxes[i], state) != FeatureLabel::kStatic;
+  for (std::size_t i = 0; i < features.lines.size(); ++i)
+    boxes_.line_excluded[i] = label_for(boxes_.line_boxes[i], state) != FeatureLabel::kStatic;
 }
 
 std::vector<MotionMatch> Tracker::match_to_reference(const Frame& frame, const PastFrame& ref,
@@ -1210,8 +1222,14 @@ std::vector<MotionMatch> Tracker::match_to_reference(const Frame& frame, const P
   std::vector<int> candidates;
   std::unordered_map<int, std::pair<int, std::size_t>> taken;  // ref index -> (distance, slot)
   std::vector<std::pair<std::size_t, int>> point_pairs;        // (current, reference)
+  // A sample of the background (features outside every box) is matched too: it tells how far
+  // static features land from the camera-motion prediction in this frame.
+  std::size_t background = 0;
+  for (std::size_t i = 0; i < cur.points.size(); ++i) background += boxes_.point_boxes[i] == 0;
+  const std::size_t stride = std::max<std::size_t>(1, background / kBackgroundSample);
+  std::size_t background_seen = 0;
   for (std::size_t i = 0; i < cur.points.size(); ++i) {
-    if (boxes_.point_boxes[i] == 0) continue;
+    if (boxes_.point_boxes[i] == 0 && background_seen++ % stride != 0) continue;
     const auto& f = cur.points[i];
     const auto at = predict(f.keypoint.uv.cast<double>(), f.has_depth() ? f.depth : 0.0);
     if (!at) continue;
@@ -1251,6 +1269,7 @@ std::vector<MotionMatch> Tracker::match_to_reference(const Frame& frame, const P
     if (g.has_depth()) m.ref_c[0] = camera_.unproject(m.ref_uv[0], g.depth);
     if (f.has_depth()) m.cur_c[0] = camera_.unproject(m.cur_uv[0], f.depth);
     m.scale = pyramid.scale[static_cast<std::size_t>(f.keypoint.level)];
+    if (boxes_.point_boxes[i] == 0) out.push_back(m);  // background: box -1
     for (std::size_t b = 0; b < boxes_.boxes.size(); ++b)
       if (boxes_.point_boxes[i] & (std::uint64_t{1} << b)) {
         m.box = static_cast<int>(b);
@@ -1318,8 +1337,11 @@ void Tracker::classify_objects(const Frame& frame, const SE3& T_c_w) {
         history_[std::min(history_.size(), static_cast<std::size_t>(opt.frame_gap)) - 1];
     const SE3 T_cur_ref = T_c_w * ref.T_c_w.inverse();
     matches = match_to_reference(frame, ref, T_cur_ref);
+    DynamicsOptions frame_opt = opt;
+    frame_opt.epipolar_threshold = adaptive_threshold(matches, T_cur_ref);
+    boxes_.threshold = frame_opt.epipolar_threshold;
     boxes_.decisions =
-        detect_dynamic_objects(static_cast<int>(n_boxes), matches, camera_, T_cur_ref, opt);
+        detect_dynamic_objects(static_cast<int>(n_boxes), matches, camera_, T_cur_ref, frame_opt);
     // A box with too few matches to that frame (an object that just came into view) is tried
     // against the last frame.
     if (&ref != &history_.front()) {
@@ -1328,8 +1350,10 @@ void Tracker::classify_objects(const Frame& frame, const SE3& T_c_w) {
       if (undecided) {
         const SE3 T_cur_last = T_c_w * history_.front().T_c_w.inverse();
         const auto recent = match_to_reference(frame, history_.front(), T_cur_last);
-        const auto retry =
-            detect_dynamic_objects(static_cast<int>(n_boxes), recent, camera_, T_cur_last, opt);
+        DynamicsOptions last_opt = opt;
+        last_opt.epipolar_threshold = adaptive_threshold(recent, T_cur_last);
+        const auto retry = detect_dynamic_objects(static_cast<int>(n_boxes), recent, camera_,
+                                                  T_cur_last, last_opt);
         for (std::size_t b = 0; b < n_boxes; ++b)
           if (!boxes_.decisions[b].decided && retry[b].decided) boxes_.decisions[b] = retry[b];
       }
@@ -1422,6 +1446,7 @@ void Tracker::classify_objects(const Frame& frame, const SE3& T_c_w) {
   const SE3 T_w_ref = ref.T_c_w.inverse();
   const SE3 T_w_c = T_c_w.inverse();
   for (const MotionMatch& m : matches) {
+    if (m.box < 0) continue;  // background
     const auto b = static_cast<std::size_t>(m.box);
     if (state[b] != ObjectState::kConstrained) continue;
     const std::uint64_t mask = m.line ? boxes_.line_boxes[static_cast<std::size_t>(m.feature)]
@@ -1451,11 +1476,27 @@ void Tracker::classify_objects(const Frame& frame, const SE3& T_c_w) {
   }
 }
 
+double Tracker::adaptive_threshold(const std::vector<MotionMatch>& matches,
+                                   const SE3& T_cur_ref) const {
+  std::vector<double> distances;
+  for (const MotionMatch& m : matches)
+    if (m.box < 0)
+      if (const auto d = motion_distance(camera_, T_cur_ref, m, 0))
+        distances.push_back(*d / m.scale);
+  const double floor = options_.dynamics.epipolar_threshold;
+  if (distances.size() < 20) return floor;
+  const auto mid = distances.begin() + static_cast<std::ptrdiff_t>(distances.size() / 2);
+  std::nth_element(distances.begin(), mid, distances.end());
+  // For 2D Gaussian residuals 3 x the median is about the 99.5th percentile.
+  return std::max(floor, options_.dynamics.background_factor * (*mid));
+}
+
 void Tracker::report_objects(const Frame& frame, TrackingOutcome& out) const {
   const auto& features = *frame.features;
   out.point_labels.assign(features.points.size(), FeatureLabel::kStatic);
   out.line_labels.assign(features.lines.size(), FeatureLabel::kStatic);
   out.objects_fresh = frame.objects ? frame.objects->fresh : true;
+  out.dynamics_threshold = boxes_.threshold;
   if (!boxes_.any()) return;
   std::vector<ObjectState> state(boxes_.boxes.size());
   for (std::size_t b = 0; b < boxes_.boxes.size(); ++b) {

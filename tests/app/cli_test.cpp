@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "mcslam/synth/sequence.hpp"
+#include "support/cli_runner.hpp"
 
 #ifndef MCSLAM_EXE
 #error "MCSLAM_EXE must name the mcslam executable"
@@ -64,53 +65,18 @@ class TempRootEnvironment : public testing::Environment {
 
 // --- running the binary ------------------------------------------------------------------------
 
-std::string quote(const std::string& s) {
-  std::string out = "'";
-  for (char c : s) out += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return out + "'";
-}
-
-std::string read_file(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
-void write_file(const fs::path& path, const std::string& text) {
-  std::ofstream out(path, std::ios::binary);
-  out << text;
-}
-
-struct CliResult {
-  int exit_code = -1;    // -1 when the process did not exit normally
-  bool crashed = false;  // ended by a signal
-  std::string out;
-  std::string err;
-};
-
-std::ostream& operator<<(std::ostream& os, const CliResult& r) {
-  return os << "exit " << r.exit_code << (r.crashed ? " (signal)" : "") << "\nstdout:\n"
-            << r.out << "\nstderr:\n"
-            << r.err;
-}
+using mcslam::test::CliResult;
+using mcslam::test::quote;
+using mcslam::test::read_file;
+using mcslam::test::write_file;
 
 /// Runs `mcslam <args>` (args already quoted) and captures its exit code and output.
 CliResult run_cli(const std::string& args) {
   static int counter = 0;
   const int n = counter++;
-  const fs::path out = root() / ("stdout_" + std::to_string(n) + ".txt");
-  const fs::path err = root() / ("stderr_" + std::to_string(n) + ".txt");
-  const std::string command = quote(MCSLAM_EXE) + " " + args + " >" + quote(out.string()) + " 2>" +
-                              quote(err.string()) + " </dev/null";
-  const int status = std::system(command.c_str());
-  CliResult r;
-  if (status != -1 && WIFEXITED(status)) r.exit_code = WEXITSTATUS(status);
-  // std::system runs /bin/sh, which reports a child killed by signal N as exit code 128 + N.
-  r.crashed = (status != -1 && WIFSIGNALED(status)) || r.exit_code > 128;
-  r.out = read_file(out);
-  r.err = read_file(err);
-  return r;
+  return mcslam::test::run_command(MCSLAM_EXE, args,
+                                   root() / ("stdout_" + std::to_string(n) + ".txt"),
+                                   root() / ("stderr_" + std::to_string(n) + ".txt"));
 }
 
 /// Bad input: exit code 1 (not 0, not a crash) and stderr containing every given piece.

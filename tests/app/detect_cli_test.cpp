@@ -15,6 +15,8 @@
 #include <vector>
 
 #include "mcslam/perception/detection.hpp"
+#include "support/cli_runner.hpp"
+#include "support/temp_dir.hpp"
 
 #ifndef MCSLAM_EXE
 #error "MCSLAM_EXE must name the mcslam executable"
@@ -36,72 +38,20 @@ std::string frame_path(const std::string& stem) { return kRpy + "/rgb/" + stem +
 #define REQUIRE_FILE(path) \
   if (!fs::exists(path)) GTEST_SKIP() << (path) << " is absent"
 
-class TempDir {
+using mcslam::test::CliResult;
+using mcslam::test::quote;
+using mcslam::test::read_file;
+using mcslam::test::write_file;
+
+class TempDir : public mcslam::test::TempDir {
  public:
-  TempDir() {
-    static std::atomic<int> counter{0};
-    for (;;) {
-      path_ = fs::temp_directory_path() / ("mcslam_detect_cli_test_" + std::to_string(::getpid()) +
-                                           "_" + std::to_string(counter++));
-      if (fs::create_directory(path_)) break;
-    }
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  TempDir(const TempDir&) = delete;
-  TempDir& operator=(const TempDir&) = delete;
-  fs::path operator/(const std::string& name) const { return path_ / name; }
-
- private:
-  fs::path path_;
+  TempDir() : mcslam::test::TempDir("mcslam_detect_cli_test") {}
 };
-
-std::string quote(const std::string& s) {
-  std::string out = "'";
-  for (char c : s) out += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return out + "'";
-}
-
-std::string read_file(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
-void write_file(const fs::path& path, const std::string& text) {
-  std::ofstream out(path, std::ios::binary);
-  out << text;
-}
-
-struct CliResult {
-  int exit_code = -1;
-  bool crashed = false;
-  std::string out;
-  std::string err;
-};
-
-std::ostream& operator<<(std::ostream& os, const CliResult& r) {
-  return os << "exit " << r.exit_code << (r.crashed ? " (signal)" : "") << "\nstdout:\n"
-            << r.out << "\nstderr:\n"
-            << r.err;
-}
 
 /// Runs `mcslam detect <args>` (args already quoted), capturing the exit code and output.
 CliResult detect_cli(const TempDir& dir, const std::string& args) {
-  const fs::path out = dir / "stdout.txt";
-  const fs::path err = dir / "stderr.txt";
-  const std::string command = quote(MCSLAM_EXE) + " detect " + args + " >" + quote(out.string()) +
-                              " 2>" + quote(err.string()) + " </dev/null";
-  const int status = std::system(command.c_str());
-  CliResult r;
-  if (status != -1 && WIFEXITED(status)) r.exit_code = WEXITSTATUS(status);
-  r.crashed = (status != -1 && WIFSIGNALED(status)) || r.exit_code > 128;
-  r.out = read_file(out);
-  r.err = read_file(err);
-  return r;
+  return mcslam::test::run_command(MCSLAM_EXE, "detect " + args, dir / "stdout.txt",
+                                   dir / "stderr.txt");
 }
 
 void expect_input_error(const CliResult& r, const std::vector<std::string>& pieces) {

@@ -1,67 +1,11 @@
 #pragma once
 // Helpers of the io tests: temporary directories and InputError message checks.
 
-#include <gtest/gtest.h>
-#include <unistd.h>
-
-#include <atomic>
-#include <filesystem>
-#include <fstream>
-#include <functional>
-#include <string>
-#include <vector>
-
-#include "mcslam/core/error.hpp"
+#include "support/temp_dir.hpp"
 
 namespace mcslam::io::iotest {
 
-/// A fresh temporary directory, removed with its contents on destruction.
-class TempDir {
- public:
-  TempDir() {
-    static std::atomic<int> counter{0};
-    const auto base = std::filesystem::temp_directory_path();
-    for (;;) {
-      path_ =
-          base / ("mcslam_io_test_" + std::to_string(::getpid()) + "_" + std::to_string(counter++));
-      if (std::filesystem::create_directory(path_)) break;
-    }
-  }
-  ~TempDir() {
-    std::error_code ec;
-    std::filesystem::remove_all(path_, ec);
-  }
-  TempDir(const TempDir&) = delete;
-  TempDir& operator=(const TempDir&) = delete;
-
-  std::string str() const { return path_.string(); }
-  std::string file(const std::string& relative) const { return (path_ / relative).string(); }
-
-  /// Writes `content` to the relative path, creating parent directories.
-  std::string write(const std::string& relative, const std::string& content) const {
-    const auto p = path_ / relative;
-    std::filesystem::create_directories(p.parent_path());
-    std::ofstream out(p, std::ios::binary);
-    out << content;
-    return p.string();
-  }
-
- private:
-  std::filesystem::path path_;
-};
-
-/// Runs fn and expects an InputError whose message contains every one of `parts`.
-inline void expect_input_error(const std::function<void()>& fn,
-                               const std::vector<std::string>& parts) {
-  try {
-    fn();
-    ADD_FAILURE() << "expected InputError";
-  } catch (const InputError& e) {
-    const std::string message = e.what();
-    for (const std::string& part : parts)
-      EXPECT_NE(message.find(part), std::string::npos)
-          << "message '" << message << "' lacks '" << part << "'";
-  }
-}
+using TempDir = mcslam::test::TempDir;
+using mcslam::test::expect_input_error;
 
 }  // namespace mcslam::io::iotest

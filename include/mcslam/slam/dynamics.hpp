@@ -59,6 +59,9 @@ struct DynamicsOptions {
   bool enabled = true;
   /// epsilon_d: a feature is an outlier of the camera's motion beyond this many pixels (level 0).
   double epipolar_threshold = 2.5;
+  /// epsilon_d grows to this many times the median distance of background features (outside
+  /// every box) when a frame is noisier than that floor (fast rotation, blur, rolling shutter).
+  double background_factor = 3.0;
   /// epsilon_r: a box is dynamic when more than this fraction of its features are outliers.
   double outlier_ratio = 0.7;
   /// Boxes with at least this many matches get their own RANSAC fundamental matrix.

@@ -56,6 +56,7 @@ struct FrameResult {
   std::optional<double> detect_ms;  // the forward pass that produced a fresh detection
   int constrained_point_residuals = 0;
   int constrained_line_residuals = 0;
+  double dynamics_threshold = 0.0;  // epsilon_d used by Algorithm 1 (pixels)
 };
 
 class System {

@@ -70,6 +70,7 @@ struct TrackingOutcome {
   /// Dynamic-object handling (when the frame had detections).
   std::vector<ObjectReport> objects;
   bool objects_fresh = true;
+  double dynamics_threshold = 0.0;  // epsilon_d used (pixels; 0 when Algorithm 1 did not run)
   /// Label of each point and line segment of the frame (all static without detections).
   std::vector<FeatureLabel> point_labels;
   std::vector<FeatureLabel> line_labels;
@@ -154,6 +155,7 @@ class Tracker {
     std::vector<optim::ConstrainedLineMeasurement> constrained_lines;
     std::vector<ObjectDecision> decisions;
     std::vector<ConstraintDecision> constraints;
+    double threshold = 0.0;  // epsilon_d used in this frame (pixels)
     bool any() const { return !boxes.empty(); }
   };
   struct LastFrame {
@@ -169,7 +171,7 @@ class Tracker {
 
   TrackingOutcome initialize(const Frame& frame);
   /// Assigns the frame's features to its boxes (features on a structural plane excepted) and
-  /// leaves every boxed feature out of the first pose estimate.
+  /// leaves the features of objects known to move out of the first pose estimate.
   void prepare_objects(const Frame& frame);
   /// Algorithms 1 and 2 against the camera motion of the first pose estimate; sets the labels,
   /// the exclusions and the constrained measurements for the final optimisation.
@@ -178,6 +180,10 @@ class Tracker {
   std::vector<MotionMatch> match_to_reference(const Frame& frame, const PastFrame& ref,
                                               const SE3& T_cur_ref) const;
   void report_objects(const Frame& frame, TrackingOutcome& out) const;
+  /// epsilon_d for this frame: the configured one, or background_factor times the median
+  /// distance of the background's matches when the frame is noisier (fast motion, blur,
+  /// rolling shutter).
+  double adaptive_threshold(const std::vector<MotionMatch>& matches, const SE3& T_cur_ref) const;
   bool track_last_frame(const Frame& frame, const SE3& prediction, Associations& assoc, SE3& T_c_w);
   bool track_reference_keyframe(const Frame& frame, Associations& assoc, SE3& T_c_w);
   bool relocalise(const Frame& frame, Associations& assoc, SE3& T_c_w);
