@@ -11,7 +11,8 @@
 namespace mcslam::slam {
 namespace {
 
-using FieldRef = std::variant<double*, int*, bool*>;
+/// A list of names is written as one comma-separated scalar ("chair, dining table").
+using FieldRef = std::variant<double*, int*, bool*, std::vector<std::string>*>;
 struct Field {
   std::string key;
   FieldRef value;
@@ -116,6 +117,7 @@ std::vector<Field> mcslam_fields(PinholeCamera& c, SystemOptions& o) {
       {"dynamics.plane_distance", &t.dynamics.plane_distance},
       {"dynamics.structural_outside", &t.dynamics.structural_outside},
       {"dynamics.person_prior", &t.dynamics.person_prior},
+      {"dynamics.constrained_classes", &t.dynamics.constrained_classes},
       {"dynamics.static_frames_to_clear", &t.dynamics.static_frames_to_clear},
       {"dynamics.constraints", &t.dynamics.constraints},
       {"dynamics.constraint_distance", &t.dynamics.constraint_distance},
@@ -168,8 +170,31 @@ std::vector<Field> orbslam2_fields(PinholeCamera& c, SystemOptions& o) {
   };
 }
 
+std::string join_names(const std::vector<std::string>& names) {
+  std::string out;
+  for (const auto& n : names) out += (out.empty() ? "" : ", ") + n;
+  return out;
+}
+
 void read_fields(io::ConfigFile& file, const std::vector<Field>& fields) {
-  for (const Field& f : fields) std::visit([&](auto* value) { file.read(f.key, *value); }, f.value);
+  for (const Field& f : fields)
+    std::visit(
+        [&](auto* value) {
+          if constexpr (std::is_same_v<decltype(value), std::vector<std::string>*>) {
+            std::string list;
+            if (!file.read(f.key, list)) return;
+            value->clear();
+            std::stringstream stream(list);
+            for (std::string name; std::getline(stream, name, ',');) {
+              const auto first = name.find_first_not_of(" \t");
+              if (first == std::string::npos) continue;
+              value->push_back(name.substr(first, name.find_last_not_of(" \t") - first + 1));
+            }
+          } else {
+            file.read(f.key, *value);
+          }
+        },
+        f.value);
 }
 
 }  // namespace
@@ -255,6 +280,8 @@ std::string to_yaml(const RunConfig& config) {
         [&](auto* value) {
           if constexpr (std::is_same_v<decltype(value), bool*>)
             s << (*value ? "true" : "false");
+          else if constexpr (std::is_same_v<decltype(value), std::vector<std::string>*>)
+            s << join_names(*value);
           else
             s << *value;
         },

@@ -129,6 +129,8 @@ TEST(Config, EffectiveConfigLoadsBackUnchanged) {
   config.options.tracker.depth_weight = 0.25;
   config.options.mapper.ba_keyframes = 17;
   config.options.sequential = true;
+  config.options.tracker.dynamics.frame_gap = 3;
+  config.options.tracker.dynamics.constrained_classes = {"chair", "dining table"};
   config.camera_source = "test";
   io::ConfigFile file = io::ConfigFile::from_string(to_yaml(config), "config.yaml");
   PinholeCamera camera;
@@ -139,6 +141,30 @@ TEST(Config, EffectiveConfigLoadsBackUnchanged) {
   EXPECT_DOUBLE_EQ(options.tracker.depth_weight, 0.25);
   EXPECT_EQ(options.mapper.ba_keyframes, 17);
   EXPECT_TRUE(options.sequential);
+  EXPECT_EQ(options.tracker.dynamics.frame_gap, 3);
+  EXPECT_EQ(options.tracker.dynamics.constrained_classes,
+            (std::vector<std::string>{"chair", "dining table"}));
+}
+
+TEST(Config, DynamicsSettingsAreCheckedAndNamed) {
+  io::ConfigFile file = io::ConfigFile::from_string(
+      "dynamics:\n  outlier_ratio: 1.5\n  constrained_classes: chair,  couch \n", "bad.yaml");
+  PinholeCamera camera;
+  camera.fx = camera.fy = 500;
+  camera.cx = 320;
+  camera.cy = 240;
+  camera.width = 640;
+  camera.height = 480;
+  SystemOptions options;
+  try {
+    apply_config(file, camera, options);
+    ADD_FAILURE() << "expected InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("bad.yaml"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("dynamics.outlier_ratio"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(options.tracker.dynamics.constrained_classes,
+            (std::vector<std::string>{"chair", "couch"}));
 }
 
 }  // namespace
