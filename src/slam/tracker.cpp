@@ -1332,9 +1332,13 @@ void Tracker::classify_objects(const Frame& frame, const SE3& T_c_w) {
   boxes_.decisions.assign(n_boxes, ObjectDecision{});
   boxes_.constraints.assign(n_boxes, ConstraintDecision{});
   std::vector<MotionMatch> matches;
-  if (!history_.empty()) {
-    const PastFrame& ref =
-        history_[std::min(history_.size(), static_cast<std::size_t>(opt.frame_gap)) - 1];
+  // The reference: dynamics.frame_gap tracked frames back, or the oldest one kept.
+  const PastFrame* reference =
+      history_.empty()
+          ? nullptr
+          : &history_[std::min(history_.size(), static_cast<std::size_t>(opt.frame_gap)) - 1];
+  if (reference) {
+    const PastFrame& ref = *reference;
     const SE3 T_cur_ref = T_c_w * ref.T_c_w.inverse();
     matches = match_to_reference(frame, ref, T_cur_ref);
     DynamicsOptions frame_opt = opt;
@@ -1440,10 +1444,8 @@ void Tracker::classify_objects(const Frame& frame, const SE3& T_c_w) {
   for (std::size_t i = 0; i < boxes_.line_boxes.size(); ++i)
     boxes_.line_excluded[i] = label_of(boxes_.line_boxes[i]) != FeatureLabel::kStatic ? 1 : 0;
   // Residuals (9) and (10) from the matched features of constrained objects.
-  if (history_.empty()) return;
-  const PastFrame& ref =
-      history_[std::min(history_.size(), static_cast<std::size_t>(opt.frame_gap)) - 1];
-  const SE3 T_w_ref = ref.T_c_w.inverse();
+  if (!reference) return;
+  const SE3 T_w_ref = reference->T_c_w.inverse();
   const SE3 T_w_c = T_c_w.inverse();
   for (const MotionMatch& m : matches) {
     if (m.box < 0) continue;  // background

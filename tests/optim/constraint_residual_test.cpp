@@ -11,6 +11,7 @@
 #include "mcslam/optim/pose_optimizer.hpp"
 #include "mcslam/optim/se3_manifold.hpp"
 #include "support/numeric_diff.hpp"
+#include "support/random_geometry.hpp"
 #include "support/test_camera.hpp"
 
 namespace mcslam::optim {
@@ -19,17 +20,8 @@ namespace {
 constexpr double kPi = std::numbers::pi;
 using RowJPose = Eigen::Matrix<double, 1, 7, Eigen::RowMajor>;
 
-Eigen::Vector3d random_unit(std::mt19937& rng) {
-  std::normal_distribution<double> g(0.0, 1.0);
-  return Eigen::Vector3d(g(rng), g(rng), g(rng)).normalized();
-}
-
-SE3 random_pose(std::mt19937& rng) {
-  std::uniform_real_distribution<double> u(-0.8, 0.8);
-  Vector6d xi;
-  for (int i = 0; i < 6; ++i) xi[i] = u(rng);
-  return SE3::exp(xi);
-}
+using test::random_pose;
+using test::random_unit;
 
 // A unit vector orthogonal to n.
 Eigen::Vector3d random_orthogonal(const Eigen::Vector3d& n, std::mt19937& rng) {

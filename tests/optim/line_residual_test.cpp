@@ -7,6 +7,7 @@
 
 #include "mcslam/optim/se3_manifold.hpp"
 #include "support/numeric_diff.hpp"
+#include "support/random_geometry.hpp"
 #include "support/test_camera.hpp"
 
 namespace mcslam::optim {
@@ -15,12 +16,7 @@ namespace {
 using RowJ7 = Eigen::Matrix<double, 2, 7, Eigen::RowMajor>;
 using RowJ3 = Eigen::Matrix<double, 2, 3, Eigen::RowMajor>;
 
-SE3 random_pose(std::mt19937& rng) {
-  std::uniform_real_distribution<double> u(-0.5, 0.5);
-  Vector6d xi;
-  for (int i = 0; i < 6; ++i) xi[i] = u(rng);
-  return SE3::exp(xi);
-}
+SE3 random_pose(std::mt19937& rng) { return test::random_pose(rng, 0.5); }
 
 // The normalised image line through two pixels.
 Eigen::Vector3d line_through(const Eigen::Vector2d& a, const Eigen::Vector2d& b) {

@@ -9,6 +9,7 @@
 #include "mcslam/core/se3.hpp"
 #include "mcslam/optim/se3_manifold.hpp"
 #include "support/numeric_diff.hpp"
+#include "support/random_geometry.hpp"
 
 namespace mcslam::optim {
 namespace {
@@ -17,17 +18,8 @@ constexpr double kPi = std::numbers::pi;
 using RowJPose = Eigen::Matrix<double, 3, 7, Eigen::RowMajor>;
 using RowJPlane = Eigen::Matrix<double, 3, 4, Eigen::RowMajor>;
 
-Eigen::Vector3d random_unit(std::mt19937& rng) {
-  std::normal_distribution<double> g(0.0, 1.0);
-  return Eigen::Vector3d(g(rng), g(rng), g(rng)).normalized();
-}
-
-SE3 random_pose(std::mt19937& rng) {
-  std::uniform_real_distribution<double> u(-0.8, 0.8);
-  Vector6d xi;
-  for (int i = 0; i < 6; ++i) xi[i] = u(rng);
-  return SE3::exp(xi);
-}
+using test::random_pose;
+using test::random_unit;
 
 // n rotated by `angle` about a random axis orthogonal to it.
 Eigen::Vector3d tilt(const Eigen::Vector3d& n, double angle, std::mt19937& rng) {
