@@ -1,10 +1,11 @@
-// mcslam command-line interface: run, eval, synth.
+// mcslam command-line interface: run, bench, eval, synth, detect.
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
 #include <cstdio>
 #include <iostream>
 
+#include "mcslam/app/bench.hpp"
 #include "mcslam/app/detect.hpp"
 #include "mcslam/app/run.hpp"
 #include "mcslam/core/error.hpp"
@@ -26,6 +27,47 @@ int run_command(const mcslam::app::RunRequest& request, bool quiet) {
               << (request.save_overlays ? ", overlays/" : "") << ")\n";
   }
   return 0;
+}
+
+int bench_command(const mcslam::app::BenchRequest& request, bool quiet) {
+  if (request.list_only) {
+    std::cout << mcslam::app::list_sequences(request);
+    return 0;
+  }
+  if (request.output_dir.empty()) throw mcslam::InputError("bench: --output is required");
+  const mcslam::app::BenchOutcome outcome = mcslam::app::run_bench(request);
+  if (!quiet) std::cout << "\n" << outcome.markdown << "\n";
+  if (!outcome.report_warning.empty())
+    std::cerr << "mcslam bench: warning: " << outcome.report_warning << "\n";
+  std::cerr << "mcslam bench: " << outcome.runs - outcome.failed << " of " << outcome.runs
+            << " runs succeeded; tables in " << request.output_dir
+            << " (results.md, results.json, runs.csv"
+            << (outcome.report_path.empty() ? "" : ", report.html") << ")\n";
+  if (outcome.failed > 0 || outcome.sequences_not_run > 0) {
+    std::cerr << "mcslam bench: " << outcome.failed << " run(s) failed and "
+              << outcome.sequences_not_run
+              << " sequence(s) could not be read; see \"Failed runs\" in results.md\n";
+    return 2;
+  }
+  return 0;
+}
+
+/// The command as typed, quoted where a shell would need it.
+std::string command_line(int argc, char** argv) {
+  std::string line;
+  for (int i = 0; i < argc; ++i) {
+    const std::string arg = argv[i];
+    const bool plain = !arg.empty() && arg.find_first_of(" \t'\"$\\;&|<>*?()") == std::string::npos;
+    if (!line.empty()) line += ' ';
+    if (plain) {
+      line += arg;
+    } else {
+      line += '\'';
+      for (char c : arg) line += c == '\'' ? std::string("'\\''") : std::string(1, c);
+      line += '\'';
+    }
+  }
+  return line;
 }
 
 int eval_command(const std::string& gt_path, const std::string& est_path, bool bonn, bool json,
@@ -113,6 +155,45 @@ int main(int argc, char** argv) {
                     "Write annotated frames to overlays/ (points, lines, objects and decisions)");
   run_cmd->add_flag("--quiet,-q", quiet, "No progress bar and no summary");
 
+  mcslam::app::BenchRequest bench;
+  auto* bench_cmd = cli.add_subcommand(
+      "bench",
+      "Run every TUM-layout sequence under DATA_ROOT N times per ablation configuration "
+      "(sequential for accuracy, threaded for speed); tables and report.html");
+  bench_cmd
+      ->add_option("data_root", bench.data_roots,
+                   "Folder(s) searched for sequences (folders with rgb.txt and depth.txt)")
+      ->required();
+  bench_cmd->add_option("--output,-o", bench.output_dir,
+                        "Folder for the results (required unless --list)");
+  bench_cmd->add_option("--runs,-n", bench.runs, "Runs per configuration and mode (default 3)");
+  bench_cmd
+      ->add_option("--configs", bench.configs,
+                   "Comma-separated subset of points,lines,planes,detection,full (default all)")
+      ->delimiter(',');
+  bench_cmd
+      ->add_option("--modes", bench.modes,
+                   "Comma-separated subset of sequential,threaded (default both)")
+      ->delimiter(',');
+  bench_cmd
+      ->add_option("--sequences", bench.sequences,
+                   "Only sequences whose name contains one of these (comma-separated)")
+      ->delimiter(',');
+  bench_cmd->add_option("--model", bench.model,
+                        "ONNX detector for the detection and full configurations (a sequence's "
+                        "own detections.json is used first)");
+  bench_cmd->add_option("--confidence", bench.confidence, "Detector confidence threshold");
+  bench_cmd->add_option("--max-frames", bench.max_frames, "Frames per run (default all)");
+  bench_cmd->add_option("--timeout", bench.timeout_s,
+                        "Seconds after which a run is stopped and reported failed (0: none; "
+                        "default 3600)");
+  bench_cmd->add_option("--overlays", bench.overlays,
+                        "Annotated frames per sequence in report.html (default 6)");
+  bench_cmd->add_option("--report-assets", bench.report_assets,
+                        "Folder with report.js (default: report/ beside the mcslam binary)");
+  bench_cmd->add_flag("--list", bench.list_only, "Print the sequences found and stop");
+  bench_cmd->add_flag("--quiet,-q", quiet, "No per-run progress and no tables on stdout");
+
   std::string gt_path, est_path;
   bool bonn = false, json = false;
   double max_dt = 0.02;
@@ -175,6 +256,11 @@ int main(int argc, char** argv) {
       if (threaded) run.sequential = false;
       run.progress = !quiet && isatty(fileno(stderr));
       return run_command(run, quiet);
+    }
+    if (bench_cmd->parsed()) {
+      bench.progress = !quiet;
+      bench.command_line = command_line(argc, argv);
+      return bench_command(bench, quiet);
     }
     if (detect_cmd->parsed()) {
       detect.progress = !quiet && isatty(fileno(stderr));
