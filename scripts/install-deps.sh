@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
-# Installs every build and test dependency of mcslam from Debian 12 packages.
-# Idempotent: packages already present are left alone. Nothing else is downloaded.
+# Installs every build and test dependency of mcslam: Debian 12 packages, and the npm packages of
+# the bench report's page (web/report, versions pinned by its package-lock.json).
+# Idempotent: what is already present is left alone. Nothing else is downloaded.
 set -euo pipefail
+cd "$(dirname "$0")/.."
 
 PACKAGES=(
   build-essential cmake ninja-build pkg-config git
@@ -16,7 +18,11 @@ PACKAGES=(
   libbenchmark-dev
   clang-format
   python3
+  chromium  # headless browser test of report.html
 )
+# Node.js and npm bundle the report's scripts: Debian's, unless a Node.js with npm is already
+# installed (a newer one from elsewhere would conflict with Debian's npm package).
+if ! command -v npm > /dev/null 2>&1; then PACKAGES+=(nodejs npm); fi
 
 missing=()
 for p in "${PACKAGES[@]}"; do
@@ -26,13 +32,23 @@ for p in "${PACKAGES[@]}"; do
 done
 
 if [ ${#missing[@]} -eq 0 ]; then
-  echo "install-deps: all ${#PACKAGES[@]} packages present"
-  exit 0
+  echo "install-deps: all ${#PACKAGES[@]} Debian packages present"
+else
+  SUDO=""
+  if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+  echo "install-deps: installing ${missing[*]}"
+  export DEBIAN_FRONTEND=noninteractive
+  $SUDO apt-get update -q
+  $SUDO apt-get install -y -q --no-install-recommends "${missing[@]}"
 fi
 
-SUDO=""
-if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
-echo "install-deps: installing ${missing[*]}"
-export DEBIAN_FRONTEND=noninteractive
-$SUDO apt-get update -q
-$SUDO apt-get install -y -q --no-install-recommends "${missing[@]}"
+# The report's npm packages, exactly as package-lock.json pins them; reinstalled when it changes.
+web=web/report
+stamp=$web/node_modules/.mcslam-installed-lock
+if [ -f "$stamp" ] && cmp -s "$web/package-lock.json" "$stamp"; then
+  echo "install-deps: report npm packages present"
+else
+  echo "install-deps: installing the report's npm packages (npm ci in $web)"
+  (cd "$web" && npm ci --no-audit --no-fund --loglevel=error)
+  cp "$web/package-lock.json" "$stamp"
+fi
