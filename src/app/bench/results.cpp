@@ -123,6 +123,17 @@ nlohmann::json optional_number(const std::optional<double>& v) {
   return v ? nlohmann::json(*v) : nlohmann::json(nullptr);
 }
 
+nlohmann::json optional_text(const std::optional<std::string>& s) {
+  return s ? nlohmann::json(*s) : nlohmann::json(nullptr);
+}
+
+/// [[name, ms], ...]: an array keeps the pipeline order.
+nlohmann::json stages_json(const std::vector<std::pair<std::string, double>>& stages) {
+  nlohmann::json j = nlohmann::json::array();
+  for (const auto& [name, ms] : stages) j.push_back({name, ms});
+  return j;
+}
+
 }  // namespace
 
 RunRecord score_run(const RunSpec& spec, const std::string& relative_output,
@@ -397,13 +408,11 @@ nlohmann::json to_json(const std::optional<Spread>& s) {
 }
 
 nlohmann::json to_json(const RunRecord& r) {
-  nlohmann::json stages = nlohmann::json::array();
-  for (const auto& [name, ms] : r.stages_ms) stages.push_back({name, ms});
   return {{"mode", to_string(r.mode)},
           {"index", r.index},
           {"ok", r.ok},
-          {"error", r.ok ? nlohmann::json(nullptr) : nlohmann::json(r.error)},
-          {"note", r.note.empty() ? nlohmann::json(nullptr) : nlohmann::json(r.note)},
+          {"error", optional_text(r.ok ? std::nullopt : std::optional(r.error))},
+          {"note", optional_text(r.note.empty() ? std::nullopt : std::optional(r.note))},
           {"frames", r.frames},
           {"ate_rmse_m", optional_number(r.ate_rmse_m)},
           {"rpe_trans_m", optional_number(r.rpe_trans_m)},
@@ -413,7 +422,7 @@ nlohmann::json to_json(const RunRecord& r) {
           {"tracking_ms", optional_number(r.tracking_ms)},
           {"dynamics_ms", optional_number(r.dynamics_ms)},
           {"wall_s", r.wall_s},
-          {"stages_ms", stages},
+          {"stages_ms", stages_json(r.stages_ms)},
           {"output", r.output}};
 }
 
@@ -435,26 +444,23 @@ nlohmann::json results_json(const BenchMeta& meta, const std::vector<SequenceRes
                          {"path", s.sequence.path},
                          {"frames", s.frames},
                          {"boxes", s.boxes},
-                         {"error", s.error ? nlohmann::json(*s.error) : nlohmann::json(nullptr)},
+                         {"error", optional_text(s.error)},
                          {"results", nlohmann::json::array()}};
     for (const ConfigResult& c : s.configs) {
-      nlohmann::json stages = nlohmann::json::array();
-      for (const auto& [name, ms] : c.stages_ms) stages.push_back({name, ms});
       nlohmann::json runs = nlohmann::json::array();
       for (const RunRecord& r : c.runs) runs.push_back(to_json(r));
-      js["results"].push_back(
-          {{"config", c.config.name},
-           {"skipped", c.skipped ? nlohmann::json(*c.skipped) : nlohmann::json(nullptr)},
-           {"ate_rmse_m", to_json(c.ate)},
-           {"ate_rmse_threaded_m", to_json(c.ate_threaded)},
-           {"rpe_trans_m", to_json(c.rpe_trans)},
-           {"rpe_rot_deg", to_json(c.rpe_rot_deg)},
-           {"tracked_ratio", to_json(c.tracked)},
-           {"fps", to_json(c.fps)},
-           {"tracking_ms", to_json(c.tracking_ms)},
-           {"dynamics_ms", c.dynamics_ms ? nlohmann::json(*c.dynamics_ms) : nlohmann::json()},
-           {"stages_ms", stages},
-           {"runs", runs}});
+      js["results"].push_back({{"config", c.config.name},
+                               {"skipped", optional_text(c.skipped)},
+                               {"ate_rmse_m", to_json(c.ate)},
+                               {"ate_rmse_threaded_m", to_json(c.ate_threaded)},
+                               {"rpe_trans_m", to_json(c.rpe_trans)},
+                               {"rpe_rot_deg", to_json(c.rpe_rot_deg)},
+                               {"tracked_ratio", to_json(c.tracked)},
+                               {"fps", to_json(c.fps)},
+                               {"tracking_ms", to_json(c.tracking_ms)},
+                               {"dynamics_ms", optional_number(c.dynamics_ms)},
+                               {"stages_ms", stages_json(c.stages_ms)},
+                               {"runs", runs}});
     }
     j["sequences"].push_back(js);
   }

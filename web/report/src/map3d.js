@@ -154,8 +154,8 @@ function keyframePath(map) {
 
 // ---------------------------------------------------------------- framing
 
-// Bounds that ignore the 1 % most extreme points on each side (stray points), plus
-// everything else in full.
+// Bounds that ignore the 1 % most extreme point and line-endpoint coordinates on each side
+// (stray landmarks), plus the planes and keyframes in full.
 function sceneBounds(parts) {
   const min = [Infinity, Infinity, Infinity];
   const max = [-Infinity, -Infinity, -Infinity];
@@ -163,9 +163,10 @@ function sceneBounds(parts) {
     if (x < min[axis]) min[axis] = x;
     if (x > max[axis]) max[axis] = x;
   };
-  if (parts.points) {
-    const pos = parts.points.positions;
-    const n = pos.length / 3;
+  for (const key of ['points', 'lines']) {
+    const pos = parts[key] && parts[key].positions;
+    if (!pos || pos.length < 3) continue;
+    const n = Math.floor(pos.length / 3);
     for (let axis = 0; axis < 3; axis++) {
       const values = new Float32Array(n);
       for (let i = 0; i < n; i++) values[i] = pos[3 * i + axis];
@@ -174,7 +175,7 @@ function sceneBounds(parts) {
       include(values[Math.ceil(0.99 * (n - 1))], axis);
     }
   }
-  for (const key of ['lines', 'planes', 'keyframes']) {
+  for (const key of ['planes', 'keyframes']) {
     const pos = parts[key] && parts[key].positions;
     if (!pos) continue;
     for (let i = 0; i + 2 < pos.length; i += 3) for (let axis = 0; axis < 3; axis++) include(pos[i + axis], axis);
