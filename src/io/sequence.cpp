@@ -4,10 +4,13 @@
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <opencv2/imgcodecs.hpp>
 #include <string_view>
 #include <system_error>
 #include <tuple>
+#include <vector>
 
 #include "io/text_util.hpp"
 #include "mcslam/core/error.hpp"
@@ -292,16 +295,40 @@ std::optional<std::string> RgbdSequence::groundtruth_path() const {
   return std::nullopt;
 }
 
+namespace {
+
+/// Reads and decodes an image file. libjpeg decodes a truncated JPEG without an error (the
+/// missing rows come out grey), so a JPEG must end with its end-of-image marker (trailing bytes
+/// after it are allowed). Returns an empty matrix when the file cannot be read or decoded.
+cv::Mat read_image(const std::string& path, int flags) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return {};
+  const std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(in)),
+                                         std::istreambuf_iterator<char>());
+  const bool jpeg = bytes.size() >= 3 && bytes[0] == 0xFF && bytes[1] == 0xD8 && bytes[2] == 0xFF;
+  if (jpeg) {
+    const std::size_t tail = std::min<std::size_t>(bytes.size(), 4096);
+    bool end_marker = false;
+    for (std::size_t i = bytes.size() - tail; i + 1 < bytes.size() && !end_marker; ++i)
+      end_marker = bytes[i] == 0xFF && bytes[i + 1] == 0xD9;
+    if (!end_marker) throw InputError(file_error(path, "truncated JPEG (no end-of-image marker)"));
+  }
+  if (bytes.empty()) return {};
+  return cv::imdecode(bytes, flags);
+}
+
+}  // namespace
+
 RgbdImages load_rgbd(const FrameEntry& frame, double depth_factor) {
   if (!std::isfinite(depth_factor) || depth_factor <= 0.0)
     throw InputError(file_error(frame.depth_path, "depth factor must be positive, got " +
                                                       detail::format_double("%g", depth_factor)));
   static const std::string kUnreadable = "cannot read image (missing, truncated or not an image)";
   RgbdImages images;
-  images.rgb = cv::imread(frame.rgb_path, cv::IMREAD_COLOR);
+  images.rgb = read_image(frame.rgb_path, cv::IMREAD_COLOR);
   if (images.rgb.empty()) throw InputError(file_error(frame.rgb_path, kUnreadable));
 
-  const cv::Mat raw = cv::imread(frame.depth_path, cv::IMREAD_UNCHANGED);
+  const cv::Mat raw = read_image(frame.depth_path, cv::IMREAD_UNCHANGED);
   if (raw.empty()) throw InputError(file_error(frame.depth_path, kUnreadable));
   if (raw.type() != CV_16UC1)
     throw InputError(

@@ -419,5 +419,27 @@ TEST(LoadRgbd, Errors) {
       {"depth factor"});
 }
 
+TEST(LoadRgbd, TruncatedJpegIsAnErrorNotAGreyImage) {
+  TempDir dir;
+  cv::Mat rgb(48, 64, CV_8UC3);
+  cv::randu(rgb, cv::Scalar::all(0), cv::Scalar::all(255));
+  ASSERT_TRUE(cv::imwrite(dir.file("c.jpg"), rgb));
+  ASSERT_TRUE(cv::imwrite(dir.file("d.png"), tiny_depth(64, 48)));
+  std::ifstream in(dir.file("c.jpg"), std::ios::binary);
+  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  // libjpeg would decode these with the missing rows grey.
+  dir.write("half.jpg", bytes.substr(0, bytes.size() / 2));
+  dir.write("cut.jpg", bytes.substr(0, bytes.size() - 2));  // only the end marker missing
+  // Bytes after the end marker (some cameras pad files) are fine.
+  dir.write("padded.jpg", bytes + std::string(100, '\0'));
+  auto load = [&](const std::string& rgb_file) {
+    return load_rgbd(FrameEntry{1.0, dir.file(rgb_file), 1.0, dir.file("d.png")}, 5000.0);
+  };
+  EXPECT_EQ(load("c.jpg").rgb.size(), cv::Size(64, 48));
+  EXPECT_EQ(load("padded.jpg").rgb.size(), cv::Size(64, 48));
+  for (const char* name : {"half.jpg", "cut.jpg"})
+    expect_input_error([&] { load(name); }, {name, "truncated JPEG (no end-of-image marker)"});
+}
+
 }  // namespace
 }  // namespace mcslam::io

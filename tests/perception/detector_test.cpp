@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "perception/perception_test_support.hpp"
+#include "support/tiny_onnx.hpp"
 
 #ifndef MCSLAM_SHARED_MODELS
 #error "MCSLAM_SHARED_MODELS must name the folder of detector models"
@@ -28,7 +29,11 @@ namespace {
 
 namespace fs = std::filesystem;
 using test::expect_input_error;
+using mcslam::test::field;
 using test::TempDir;
+using mcslam::test::tiny_onnx;
+using mcslam::test::value_info;
+using mcslam::test::varint;
 
 const std::string kModels = MCSLAM_SHARED_MODELS;
 const std::string kYoloV8 = kModels + "/yolov8n_320.onnx";
@@ -246,53 +251,6 @@ TEST(ClassNames, UltralyticsDictAndList) {
   EXPECT_FALSE(parse_class_names("{0: 'a} "));
   EXPECT_FALSE(parse_class_names("{0: 'a'} trailing"));
   EXPECT_FALSE(parse_class_names("person"));
-}
-
-// A hand-written protobuf encoder, enough to build tiny ONNX models.
-std::string varint(std::uint64_t v) {
-  std::string out;
-  do {
-    const auto byte = static_cast<unsigned char>((v & 0x7f) | (v > 0x7f ? 0x80 : 0));
-    out += static_cast<char>(byte);
-    v >>= 7;
-  } while (v != 0);
-  return out;
-}
-std::string field(int number, std::uint64_t value) {
-  return varint(static_cast<std::uint64_t>(number) << 3) + varint(value);
-}
-std::string field(int number, const std::string& payload) {
-  return varint((static_cast<std::uint64_t>(number) << 3) | 2) + varint(payload.size()) + payload;
-}
-
-std::string value_info(const std::string& name, const std::vector<std::int64_t>& dims) {
-  std::string shape;
-  for (std::int64_t d : dims) shape += field(1, field(1, static_cast<std::uint64_t>(d)));
-  const std::string tensor = field(1, std::uint64_t{1}) + field(2, shape);  // float
-  return field(1, name) + field(2, field(1, tensor));
-}
-
-/// A valid ONNX model: a 1x3xHxW input reshaped to `output` (an int64 initializer holds the
-/// shape), with optional metadata.
-std::string tiny_onnx(int size, const std::vector<std::int64_t>& output,
-                      const std::vector<std::pair<std::string, std::string>>& metadata = {}) {
-  std::string raw;
-  for (std::int64_t v : output)
-    for (int b = 0; b < 8; ++b)
-      raw += static_cast<char>((static_cast<std::uint64_t>(v) >> (8 * b)) & 0xff);
-  const std::string shape_tensor = field(1, static_cast<std::uint64_t>(output.size())) +
-                                   field(2, std::uint64_t{7}) + field(8, std::string("shape")) +
-                                   field(9, raw);
-  const std::string node = field(1, std::string("images")) + field(1, std::string("shape")) +
-                           field(2, std::string("out")) + field(3, std::string("reshape")) +
-                           field(4, std::string("Reshape"));
-  const std::string graph =
-      field(1, node) + field(2, std::string("tiny")) + field(5, shape_tensor) +
-      field(11, value_info("images", {1, 3, size, size})) + field(12, value_info("out", output));
-  std::string model = field(1, std::uint64_t{7}) + field(2, std::string("mcslam-test")) +
-                      field(7, graph) + field(8, field(2, std::uint64_t{13}));
-  for (const auto& [key, value] : metadata) model += field(14, field(1, key) + field(2, value));
-  return model;
 }
 
 std::string little_endian(std::uint64_t v, int bytes) {
