@@ -17,6 +17,7 @@ PACKAGES=(
   libgtest-dev libgmock-dev
   libbenchmark-dev
   clang-format
+  clang libclang-rt-14-dev  # libFuzzer and the sanitizers of the fuzz preset (scripts/fuzz.sh)
   python3
   chromium  # headless browser test of report.html
 )

@@ -5,7 +5,10 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <cstdio>
+#include <cstring>
 #include <limits>
+#include <string_view>
 
 #include "io/text_util.hpp"
 #include "mcslam/core/error.hpp"
@@ -135,6 +138,89 @@ ConfigFile ConfigFile::load(const std::string& path) {
   return from_string(detail::read_text_file(path), path);
 }
 
+namespace {
+
+/// yaml-cpp 0.7 (Debian 12) loops forever, allocating, when a ',' comes where a block-level node
+/// should start: "," or ",]" alone, "!tag ,", or a line starting with ',' after an indented map
+/// (found by fuzz/fuzz_settings). Such text is not valid YAML (a plain scalar cannot start with
+/// ','), so it is rejected first with the syntax error yaml-cpp should have given. A node starts
+/// at a line start, after "- ", "? ", ": ", "--- " and after a tag or anchor. Quoted and flow
+/// text is followed across lines, so "[1\n, 2]" and "a: ',x'" stay valid.
+void reject_comma_node(const std::string& text, const std::string& name) {
+  int flow_depth = 0;
+  char quote = 0;           // ' or " while inside a quoted scalar
+  bool node_start = true;   // the next token starts a node
+  bool token_start = true;  // the next character starts a token
+  int line = 1;
+  auto blank = [&](std::size_t i) {
+    return i >= text.size() || text[i] == ' ' || text[i] == '\t' || text[i] == '\r' ||
+           text[i] == '\n';
+  };
+  for (std::size_t i = 0; i < text.size(); ++i) {
+    const char c = text[i];
+    if (c == '\n') ++line;
+    // YAML allows no C0 control character but tab, line feed and carriage return (yaml-cpp
+    // loops on some, e.g. a NUL byte before a ',').
+    if (static_cast<unsigned char>(c) < 0x20 && c != '\t' && c != '\n' && c != '\r') {
+      char code[8];
+      std::snprintf(code, sizeof(code), "0x%02x", static_cast<unsigned>(c));
+      throw InputError(file_error(detail::at_line(name, line),
+                                  std::string("not a YAML text: control character ") + code));
+    }
+    if (quote) {
+      if (c == '\\' && quote == '"')
+        ++i;
+      else if (c == quote)
+        quote = 0;
+      continue;
+    }
+    if (c == '\n') {
+      node_start = token_start = true;
+      continue;
+    }
+    if (blank(i)) {
+      token_start = true;
+      continue;
+    }
+    const bool column_zero = i == 0 || text[i - 1] == '\n';
+    if ((c == '#' && token_start) || (c == '%' && column_zero)) {
+      while (i + 1 < text.size() && text[i + 1] != '\n') ++i;  // a comment or a directive
+      continue;
+    }
+    if (node_start && flow_depth == 0) {
+      if (c == ',')
+        throw InputError(file_error(detail::at_line(name, line),
+                                    "YAML syntax error: a node cannot start with ',' outside "
+                                    "[ ] or { }"));
+      if ((c == '!' || c == '&') && token_start) {
+        // A tag or anchor (it ends at a blank or a flow indicator): the node follows it.
+        while (!blank(i + 1) && std::strchr(",[]{}", text[i + 1]) == nullptr) ++i;
+        token_start = true;
+        continue;
+      }
+      if ((c == '-' || c == '?' || c == ':') && blank(i + 1)) continue;  // an indicator
+      if (c == '-' && text.compare(i, 3, "---") == 0 && blank(i + 3)) {  // a document marker
+        i += 2;
+        continue;
+      }
+    }
+    if ((c == '\'' || c == '"') && token_start) {
+      quote = c;
+    } else if (c == '[' || c == '{') {
+      ++flow_depth;
+    } else if ((c == ']' || c == '}') && flow_depth > 0) {
+      --flow_depth;
+    } else if (c == ':' && blank(i + 1) && flow_depth == 0) {
+      node_start = token_start = true;  // "key: value": the value is a node
+      continue;
+    }
+    node_start = false;
+    token_start = c == ',' || c == '[' || c == '{';
+  }
+}
+
+}  // namespace
+
 ConfigFile ConfigFile::from_string(const std::string& yaml, const std::string& name) {
   std::string text = yaml;
   if (text.rfind("\xEF\xBB\xBF", 0) == 0) text.erase(0, 3);  // UTF-8 byte order mark
@@ -144,6 +230,7 @@ ConfigFile ConfigFile::from_string(const std::string& yaml, const std::string& n
   ConfigFile config;
   config.path_ = name;
   std::vector<YAML::Node> documents;
+  reject_comma_node(text, name);
   try {
     documents = YAML::LoadAll(text);
   } catch (const YAML::Exception& e) {

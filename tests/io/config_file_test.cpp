@@ -202,6 +202,43 @@ TEST(ConfigFile, SyntaxErrorsNameFileAndLine) {
                      {"x.yaml:2", "YAML syntax error"});
 }
 
+TEST(ConfigFile, NodeStartingWithACommaIsASyntaxErrorNotAHang) {
+  // yaml-cpp 0.7 never returns on these (found by fuzz/fuzz_settings); mcslam rejects them first.
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {",", "x.yaml:1"},
+      {",]", "x.yaml:1"},
+      {"  ,}", "x.yaml:1"},
+      {"# settings\n\n,a: 1\n", "x.yaml:3"},
+      {"---\n, x\n", "x.yaml:2"},
+      {"a: 1\n--- ,]\n", "x.yaml:2"},
+      {"   a:b: [0.26]\n, -0\n", "x.yaml:2"},
+      {"%Y 1\n,\n", "x.yaml:2"},
+      {"!t ,\n", "x.yaml:1"},
+      {"\"c\"\n!oata:0.0k2, 1.16]\n", "x.yaml:2"},
+      {"a:\n  - ,\n", "x.yaml:2"},
+      {"&x ,\n", "x.yaml:1"},
+      {"%Y: [&.52, -0.95\n ,,\n", "x.yaml:2"},
+  };
+  for (const auto& [text, where] : cases)
+    expect_input_error([&] { ConfigFile::from_string(text, "x.yaml"); },
+                       {where, "YAML syntax error: a node cannot start with ','"});
+  expect_input_error([] { ConfigFile::from_string(std::string("a: 1\n\0,\n", 8), "x.yaml"); },
+                     {"x.yaml:2", "not a YAML text: control character 0x00"});
+  expect_input_error([] { ConfigFile::from_string("a: \x01\n", "x.yaml"); },
+                     {"x.yaml:1", "control character 0x01"});
+  // Commas elsewhere are fine: in values, quotes, and flow collections over several lines.
+  ConfigFile ok = ConfigFile::from_string(
+      "a: [1, 2\n   , 3]\nb: ',x'\nc: x, y\nd: \"q\n, r\"\ne: it's # ', x\n", "ok.yaml");
+  std::vector<double> a;
+  EXPECT_TRUE(ok.read("a", a));
+  EXPECT_EQ(a, (std::vector<double>{1, 2, 3}));
+  std::string b, c;
+  EXPECT_TRUE(ok.read("b", b));
+  EXPECT_EQ(b, ",x");
+  EXPECT_TRUE(ok.read("c", c));
+  EXPECT_EQ(c, "x, y");
+}
+
 TEST(ConfigFile, LoadErrors) {
   TempDir dir;
   expect_input_error([&] { ConfigFile::load(dir.file("none.yaml")); },
