@@ -7,6 +7,7 @@
 
 #include "mcslam/app/bench.hpp"
 #include "mcslam/app/detect.hpp"
+#include "mcslam/app/faults.hpp"
 #include "mcslam/app/run.hpp"
 #include "mcslam/core/error.hpp"
 #include "mcslam/eval/bonn.hpp"
@@ -194,6 +195,21 @@ int main(int argc, char** argv) {
   bench_cmd->add_flag("--list", bench.list_only, "Print the sequences found and stop");
   bench_cmd->add_flag("--quiet,-q", quiet, "No per-run progress and no tables on stdout");
 
+  mcslam::app::FaultRequest faults;
+  std::vector<std::string> fault_texts;
+  auto* faults_cmd = cli.add_subcommand(
+      "faults",
+      "Write a copy of a sequence with faults injected (dropped, black, frozen frames...)");
+  faults_cmd->add_option("sequence", faults.sequence_dir, "Sequence folder")->required();
+  faults_cmd->add_option("--output,-o", faults.output_dir, "Folder for the faulty copy")
+      ->required();
+  faults_cmd->add_option("--fault", fault_texts,
+                         "drop-every:K, drop-burst:START:LEN, black:START:LEN, saturate:START:LEN, "
+                         "zero-depth:START:LEN, freeze:START:LEN, time-jump:START:SECONDS, "
+                         "kidnap:START:LEN (frames are 0-based; repeat for several; none: a "
+                         "plain copy)");
+  faults_cmd->add_flag("--quiet,-q", quiet, "No summary");
+
   std::string gt_path, est_path;
   bool bonn = false, json = false;
   double max_dt = 0.02;
@@ -261,6 +277,15 @@ int main(int argc, char** argv) {
       bench.progress = !quiet;
       bench.command_line = command_line(argc, argv);
       return bench_command(bench, quiet);
+    }
+    if (faults_cmd->parsed()) {
+      for (const auto& t : fault_texts) faults.faults.push_back(mcslam::app::parse_fault(t));
+      const nlohmann::json report = mcslam::app::write_faulty_sequence(faults);
+      if (!quiet)
+        std::cout << "wrote " << report["frames_out"].get<int>() << " of "
+                  << report["frames_in"].get<int>() << " frames to " << faults.output_dir
+                  << " (faults.json lists the faults)\n";
+      return 0;
     }
     if (detect_cmd->parsed()) {
       detect.progress = !quiet && isatty(fileno(stderr));

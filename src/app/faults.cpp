@@ -1,0 +1,233 @@
+#include "mcslam/app/faults.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <iomanip>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <sstream>
+
+#include "mcslam/core/error.hpp"
+#include "mcslam/io/files.hpp"
+#include "mcslam/io/sequence.hpp"
+#include "mcslam/io/trajectory_io.hpp"
+#include "mcslam/slam/config.hpp"
+
+namespace mcslam::app {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct KindName {
+  Fault::Kind kind;
+  const char* name;
+  bool has_length;  // START:LEN (else drop-every:K or time-jump:START:SECONDS)
+};
+
+constexpr KindName kKinds[] = {
+    {Fault::Kind::kDropEvery, "drop-every", false}, {Fault::Kind::kDropBurst, "drop-burst", true},
+    {Fault::Kind::kBlack, "black", true},           {Fault::Kind::kSaturate, "saturate", true},
+    {Fault::Kind::kZeroDepth, "zero-depth", true},  {Fault::Kind::kFreeze, "freeze", true},
+    {Fault::Kind::kTimeJump, "time-jump", false},   {Fault::Kind::kKidnap, "kidnap", true},
+};
+
+const char* kForms =
+    "drop-every:K, drop-burst:START:LEN, black:START:LEN, saturate:START:LEN, "
+    "zero-depth:START:LEN, freeze:START:LEN, time-jump:START:SECONDS, kidnap:START:LEN";
+
+struct OutFrame {
+  double t_rgb = 0, t_depth = 0;
+  std::string rgb, depth;
+  bool keep = true;
+};
+
+std::string absolute(const std::string& path) {
+  std::error_code ec;
+  const fs::path p = fs::absolute(path, ec);
+  return (ec ? fs::path(path) : p).lexically_normal().string();
+}
+
+void write_image(const fs::path& path, const cv::Mat& image) {
+  if (!cv::imwrite(path.string(), image))
+    throw InputError(file_error(path.string(), "cannot write"));
+}
+
+std::string camera_yaml(const PinholeCamera& c) {
+  std::ostringstream s;
+  s << std::setprecision(12);
+  s << "# the camera of the source sequence (written by mcslam faults)\ncamera:\n"
+    << "  fx: " << c.fx << "\n  fy: " << c.fy << "\n  cx: " << c.cx << "\n  cy: " << c.cy
+    << "\n  width: " << c.width << "\n  height: " << c.height << "\n  k1: " << c.distortion[0]
+    << "\n  k2: " << c.distortion[1] << "\n  p1: " << c.distortion[2]
+    << "\n  p2: " << c.distortion[3] << "\n  k3: " << c.distortion[4]
+    << "\n  depth_factor: " << c.depth_factor << "\n  bf: " << c.bf
+    << "\n  readout_time: " << c.readout_time << "\n";
+  return s.str();
+}
+
+}  // namespace
+
+Fault parse_fault(const std::string& text) {
+  std::vector<std::string> parts;
+  std::stringstream stream(text);
+  for (std::string p; std::getline(stream, p, ':');) parts.push_back(p);
+  const auto bad = [&](const std::string& why) {
+    return InputError("--fault '" + text + "': " + why + " (forms: " + kForms + ")");
+  };
+  if (parts.empty()) throw bad("empty");
+  const auto it = std::find_if(std::begin(kKinds), std::end(kKinds),
+                               [&](const KindName& k) { return parts[0] == k.name; });
+  if (it == std::end(kKinds)) throw bad("unknown fault");
+  Fault f;
+  f.kind = it->kind;
+  const std::size_t expected = f.kind == Fault::Kind::kDropEvery ? 2 : 3;
+  if (parts.size() != expected)
+    throw bad("expected " + std::to_string(expected - 1) + " number(s)");
+  try {
+    std::size_t used = 0;
+    const auto integer = [&](const std::string& s) {
+      const int v = std::stoi(s, &used);
+      if (used != s.size()) throw std::invalid_argument(s);
+      return v;
+    };
+    if (f.kind == Fault::Kind::kDropEvery) {
+      f.length = integer(parts[1]);
+      if (f.length < 2) throw bad("K must be at least 2");
+    } else {
+      f.start = integer(parts[1]);
+      if (f.start < 0) throw bad("START must not be negative");
+      if (f.kind == Fault::Kind::kTimeJump) {
+        f.seconds = std::stod(parts[2], &used);
+        if (used != parts[2].size() || !std::isfinite(f.seconds) || f.seconds <= 0)
+          throw bad("SECONDS must be a positive number");
+      } else {
+        f.length = integer(parts[2]);
+        if (f.length < 1) throw bad("LEN must be at least 1");
+      }
+    }
+  } catch (const std::logic_error&) {  // stoi / stod
+    throw bad("not a number");
+  }
+  return f;
+}
+
+std::string to_string(const Fault& f) {
+  const auto it = std::find_if(std::begin(kKinds), std::end(kKinds),
+                               [&](const KindName& k) { return k.kind == f.kind; });
+  std::ostringstream s;
+  s << it->name << ':';
+  if (f.kind == Fault::Kind::kDropEvery)
+    s << f.length;
+  else if (f.kind == Fault::Kind::kTimeJump)
+    s << f.start << ':' << f.seconds;
+  else
+    s << f.start << ':' << f.length;
+  return s.str();
+}
+
+nlohmann::json write_faulty_sequence(const FaultRequest& request) {
+  const io::RgbdSequence source = io::RgbdSequence::open(request.sequence_dir);
+  const slam::RunConfig config = slam::resolve_run_config(request.sequence_dir, std::nullopt);
+  const int n = static_cast<int>(source.frames().size());
+  std::vector<OutFrame> frames;
+  for (const io::FrameEntry& e : source.frames())
+    frames.push_back(
+        {e.rgb_timestamp, e.depth_timestamp, absolute(e.rgb_path), absolute(e.depth_path), true});
+  std::optional<Trajectory> groundtruth;
+  if (const auto gt = source.groundtruth_path()) groundtruth = io::read_tum_trajectory(*gt);
+
+  const fs::path out(request.output_dir);
+  io::ensure_directory((out / "rgb").string());
+  io::ensure_directory((out / "depth").string());
+  const cv::Size size(config.camera.width, config.camera.height);
+  nlohmann::json report = {
+      {"source", source.directory()}, {"frames_in", n}, {"faults", nlohmann::json::array()}};
+  for (const Fault& f : request.faults) {
+    if (f.kind != Fault::Kind::kDropEvery && f.start >= n)
+      throw InputError("--fault '" + to_string(f) + "': the sequence has only " +
+                       std::to_string(n) + " frames");
+    const int first = f.kind == Fault::Kind::kDropEvery ? 0 : f.start;
+    const int end = f.kind == Fault::Kind::kDropEvery || f.kind == Fault::Kind::kTimeJump
+                        ? n
+                        : std::min(n, f.start + f.length + (f.kind == Fault::Kind::kFreeze));
+    int affected = 0;
+    for (int i = first; i < end; ++i) {
+      OutFrame& fr = frames[i];
+      char name[32];
+      std::snprintf(name, sizeof(name), "%06d.png", i);
+      switch (f.kind) {
+        case Fault::Kind::kDropEvery:
+          if ((i + 1) % f.length != 0) continue;
+          fr.keep = false;
+          break;
+        case Fault::Kind::kDropBurst:
+          fr.keep = false;
+          break;
+        case Fault::Kind::kBlack:
+        case Fault::Kind::kSaturate:
+          write_image(
+              out / "rgb" / name,
+              cv::Mat(size, CV_8UC3, cv::Scalar::all(f.kind == Fault::Kind::kBlack ? 0 : 255)));
+          fr.rgb = absolute((out / "rgb" / name).string());
+          break;
+        case Fault::Kind::kZeroDepth:
+          write_image(out / "depth" / name, cv::Mat(size, CV_16UC1, cv::Scalar(0)));
+          fr.depth = absolute((out / "depth" / name).string());
+          break;
+        case Fault::Kind::kKidnap:
+          write_image(out / "rgb" / name, cv::Mat(size, CV_8UC3, cv::Scalar::all(0)));
+          write_image(out / "depth" / name, cv::Mat(size, CV_16UC1, cv::Scalar(0)));
+          fr.rgb = absolute((out / "rgb" / name).string());
+          fr.depth = absolute((out / "depth" / name).string());
+          break;
+        case Fault::Kind::kFreeze:
+          if (i == f.start) continue;  // the frame that stays on screen
+          fr.rgb = frames[f.start].rgb;
+          fr.depth = frames[f.start].depth;
+          break;
+        case Fault::Kind::kTimeJump:
+          fr.t_rgb += f.seconds;
+          fr.t_depth += f.seconds;
+          break;
+      }
+      ++affected;
+    }
+    if (f.kind == Fault::Kind::kTimeJump && groundtruth) {
+      const double from = source.frames()[f.start].rgb_timestamp - 1e-6;
+      for (StampedPose& p : *groundtruth)
+        if (p.timestamp >= from) p.timestamp += f.seconds;
+    }
+    nlohmann::json j = {{"fault", to_string(f)}, {"frames_affected", affected}};
+    if (f.kind != Fault::Kind::kDropEvery) {
+      const int last = std::min(n, f.kind == Fault::Kind::kTimeJump ? f.start + 1 : end) - 1;
+      j["first_frame"] = f.start;
+      j["last_frame"] = last;
+      j["t_begin"] = frames[f.start].t_rgb;
+      j["t_end"] = frames[last].t_rgb;
+    }
+    report["faults"].push_back(j);
+  }
+
+  std::ostringstream rgb, depth;
+  rgb << "# colour images (mcslam faults)\n" << std::fixed << std::setprecision(6);
+  depth << "# depth images (mcslam faults)\n" << std::fixed << std::setprecision(6);
+  int kept = 0;
+  for (const OutFrame& f : frames) {
+    if (!f.keep) continue;
+    rgb << f.t_rgb << ' ' << f.rgb << '\n';
+    depth << f.t_depth << ' ' << f.depth << '\n';
+    ++kept;
+  }
+  if (kept == 0) throw InputError("--fault: every frame would be dropped");
+  io::write_file_atomic((out / "rgb.txt").string(), rgb.str());
+  io::write_file_atomic((out / "depth.txt").string(), depth.str());
+  io::write_file_atomic((out / "camera.yaml").string(), camera_yaml(config.camera));
+  if (groundtruth) io::write_tum_trajectory((out / "groundtruth.txt").string(), *groundtruth);
+  report["frames_out"] = kept;
+  io::write_file_atomic((out / "faults.json").string(), report.dump(2) + "\n");
+  return report;
+}
+
+}  // namespace mcslam::app
