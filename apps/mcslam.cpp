@@ -2,6 +2,7 @@
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
+#include <csignal>
 #include <cstdio>
 #include <iostream>
 
@@ -17,17 +18,42 @@
 
 namespace {
 
-int run_command(const mcslam::app::RunRequest& request, bool quiet) {
+// Set by SIGINT/SIGTERM during `mcslam run`: the run stops after the current frame and writes its
+// results (signals are process-wide, hence a file-scope flag; it never leaves this file).
+volatile std::sig_atomic_t g_stop_requested = 0;
+
+void request_stop(int) {
+  g_stop_requested = 1;
+  static const char kMessage[] =
+      "\nmcslam: stopping after this frame and writing the results (again to kill)\n";
+  (void)!::write(STDERR_FILENO, kMessage, sizeof(kMessage) - 1);
+}
+
+/// The first SIGINT or SIGTERM asks the run to stop; the handler then resets itself, so a second
+/// one kills the process as usual.
+void install_stop_handler() {
+  struct sigaction action {};
+  action.sa_handler = request_stop;
+  sigemptyset(&action.sa_mask);
+  action.sa_flags = SA_RESETHAND;
+  sigaction(SIGINT, &action, nullptr);
+  sigaction(SIGTERM, &action, nullptr);
+}
+
+int run_command(mcslam::app::RunRequest request, bool quiet) {
+  install_stop_handler();
+  request.stop_requested = [] { return g_stop_requested != 0; };
   const nlohmann::json summary = mcslam::app::run_sequence(request);
   if (!quiet) {
     std::cout << mcslam::app::summary_text(summary);
-    std::cout << "results in " << request.output_dir
-              << " (trajectory.txt, keyframes.txt, timings.csv, summary.json, config.yaml"
-              << (request.save_map ? ", map.ply, map.json" : "")
-              << (summary["dynamics"]["frames_with_boxes"].get<int>() > 0 ? ", objects.json" : "")
-              << (request.save_overlays ? ", overlays/" : "") << ")\n";
+    std::cout
+        << "results in " << request.output_dir
+        << " (trajectory.txt, keyframes.txt, timings.csv, summary.json, status.json, config.yaml"
+        << (request.save_map ? ", map.ply, map.json" : "")
+        << (summary["dynamics"]["frames_with_boxes"].get<int>() > 0 ? ", objects.json" : "")
+        << (request.save_overlays ? ", overlays/" : "") << ")\n";
   }
-  return 0;
+  return summary["state"] == "interrupted" ? 130 : 0;
 }
 
 int bench_command(const mcslam::app::BenchRequest& request, bool quiet) {
@@ -154,6 +180,11 @@ int main(int argc, char** argv) {
                     "Exclude dynamic objects but skip the moving-constraint check (ablation)");
   run_cmd->add_flag("--save-overlays", run.save_overlays,
                     "Write annotated frames to overlays/ (points, lines, objects and decisions)");
+  run_cmd
+      ->add_option("--repeat", run.repeat,
+                   "Play the sequence N times in a row as one stream (a soak run; per-pass "
+                   "speed, memory, map size and ATE in the summary)")
+      ->check(CLI::PositiveNumber);
   run_cmd->add_flag("--quiet,-q", quiet, "No progress bar and no summary");
 
   mcslam::app::BenchRequest bench;

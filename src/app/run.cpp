@@ -195,64 +195,170 @@ void apply_feature_list(const std::string& list, bool& points, bool& lines, bool
     throw InputError("--features: name at least one of points, lines, planes");
 }
 
-nlohmann::json run_sequence(const RunRequest& request) {
-  namespace fs = std::filesystem;
-  io::SequenceOptions seq_options;
-  if (request.associations_path) seq_options.associations_file = *request.associations_path;
-  const io::RgbdSequence sequence = io::RgbdSequence::open(request.sequence_dir, seq_options);
-  for (const auto& warning : sequence.warnings())
-    std::cerr << "mcslam: warning: " << warning << "\n";
-  slam::RunConfig config = slam::resolve_run_config(request.sequence_dir, request.config_path);
-  if (request.sequential) config.options.sequential = *request.sequential;
-  if (request.features)
-    apply_feature_list(*request.features, config.options.use.points, config.options.use.lines,
-                       config.options.use.planes);
-  io::ensure_directory(request.output_dir);
-  const fs::path out(request.output_dir);
-  io::write_file_atomic((out / "config.yaml").string(), slam::to_yaml(config));
+namespace {
 
-  // Ground truth is read before the run so that a broken file is reported at once.
-  std::optional<Trajectory> groundtruth;
-  if (const auto gt_path = sequence.groundtruth_path()) {
-    groundtruth = io::read_tum_trajectory(*gt_path);
-    if (is_bonn(request.sequence_dir)) groundtruth = eval::bonn_marker_to_camera(*groundtruth);
+/// Resident memory of this process now, in MiB (Linux), 0 when unknown.
+double current_rss_mib() {
+  std::ifstream statm("/proc/self/statm");
+  long long pages = 0, resident = 0;
+  if (!(statm >> pages >> resident)) return 0.0;
+  return static_cast<double>(resident) * static_cast<double>(::sysconf(_SC_PAGESIZE)) /
+         (1024.0 * 1024.0);
+}
+
+/// The frames a run plays: the sequence `passes` times in a row, pass k shifted by k * period.
+struct StreamPlan {
+  std::vector<io::FrameEntry> frames;
+  int passes = 1;
+  std::size_t frames_per_pass = 0;
+  double first = 0.0, last = 0.0;  // RGB timestamps of the sequence's first and last frames
+  double gap = 0.0;                // median time between frames
+  double period = 0.0;             // last - first + gap: pass k starts at first + k * period
+};
+
+StreamPlan plan_stream(const std::vector<io::FrameEntry>& frames, int passes) {
+  StreamPlan plan;
+  plan.passes = passes;
+  plan.frames_per_pass = frames.size();
+  plan.first = frames.front().rgb_timestamp;
+  plan.last = frames.back().rgb_timestamp;
+  std::vector<double> gaps;
+  for (std::size_t i = 1; i < frames.size(); ++i)
+    gaps.push_back(frames[i].rgb_timestamp - frames[i - 1].rgb_timestamp);
+  plan.gap = gaps.empty() ? 1.0 : compute_stats(gaps).median;
+  plan.period = plan.last - plan.first + plan.gap;
+  plan.frames.reserve(frames.size() * passes);
+  for (int k = 0; k < passes; ++k) {
+    for (io::FrameEntry entry : frames) {
+      entry.rgb_timestamp += k * plan.period;
+      entry.depth_timestamp += k * plan.period;
+      plan.frames.push_back(std::move(entry));
+    }
+  }
+  return plan;
+}
+
+/// The ground truth of each pass: the poses within half a frame gap of the sequence's frames,
+/// shifted as the pass's frames are (the copies cannot overlap: period = span + gap).
+Trajectory repeat_groundtruth(const Trajectory& groundtruth, const StreamPlan& plan) {
+  Trajectory out;
+  for (int k = 0; k < plan.passes; ++k)
+    for (const StampedPose& pose : groundtruth)
+      if (pose.timestamp >= plan.first - 0.5 * plan.gap &&
+          pose.timestamp < plan.last + 0.5 * plan.gap)
+        out.push_back({pose.timestamp + k * plan.period, pose.T_w_c});
+  return out;
+}
+
+/// status.json: how far a run got, rewritten atomically at each change of state and at
+/// checkpoints, so that a killed run is recognisable as partial.
+class RunStatus {
+ public:
+  RunStatus(std::string path, std::size_t frames_total)
+      : path_(std::move(path)), frames_total_(frames_total) {
+    write("running", 0, {});
+  }
+  void running(std::size_t frames_done) { write("running", frames_done, {}); }
+  void finished(bool interrupted, std::size_t frames_done) {
+    write(interrupted ? "interrupted" : "complete", frames_done, {});
+  }
+  /// Best effort: the error is reported to the caller anyway.
+  void failed(const std::string& error) {
+    try {
+      write("failed", frames_done_, error);
+    } catch (const InputError&) {
+    }
   }
 
-  if (request.no_dynamics) config.options.tracker.dynamics.enabled = false;
-  if (request.no_constraints) config.options.tracker.dynamics.constraints = false;
-  std::unique_ptr<slam::DetectionSource> detection_source =
-      make_detection_source(request, config.camera);
-  if (!detection_source)
-    std::cerr << "mcslam: warning: no --model or --detections given: running on geometry only, "
-                 "without dynamic-object handling\n";
-  if (request.save_overlays) io::ensure_directory((out / "overlays").string());
+ private:
+  void write(const std::string& state, std::size_t frames_done, const std::string& error) {
+    frames_done_ = frames_done;
+    nlohmann::json j = {{"state", state},
+                        {"frames_done", frames_done},
+                        {"frames_total", frames_total_},
+                        {"pid", static_cast<long long>(::getpid())}};
+    if (!error.empty()) j["error"] = error;
+    io::write_file_atomic(path_, j.dump(2) + "\n");
+  }
 
-  std::size_t total = sequence.frames().size();
-  if (request.max_frames > 0) total = std::min(total, static_cast<std::size_t>(request.max_frames));
+  std::string path_;
+  std::size_t frames_total_;
+  std::size_t frames_done_ = 0;
+};
+
+/// Figures of one pass of a repeated run, taken as its last frame is done.
+struct PassFigures {
+  int frames = 0, tracked = 0, lost = 0, relocalised = 0, keyframes_inserted = 0;
+  std::vector<double> tracking_ms;
+  double wall_s = 0.0;
+  double rss_end_mib = 0.0;
+  std::size_t keyframes_in_map = 0, points_in_map = 0, lines_in_map = 0;
+};
+
+/// Per-frame stage times, compactly: the value of stage k (in first-seen order) or 0.
+struct StageTable {
+  std::vector<std::string> names;
+  std::map<std::string, std::size_t> index;
+  std::vector<std::vector<float>> rows;
+
+  void add_frame(const StageTimes& times) {
+    std::vector<float> row(names.size(), 0.0f);
+    for (const auto& [name, ms] : times.stages) {
+      auto it = index.find(name);
+      if (it == index.end()) {
+        it = index.emplace(name, names.size()).first;
+        names.push_back(name);
+        row.push_back(0.0f);
+      }
+      row[it->second] += static_cast<float>(ms);  // a stage may run twice on a frame
+    }
+    rows.push_back(std::move(row));
+  }
+  double at(std::size_t frame, std::size_t stage) const {
+    return stage < rows[frame].size() ? rows[frame][stage] : 0.0;
+  }
+};
+
+nlohmann::json run_frames(const RunRequest& request, const io::RgbdSequence& sequence,
+                          const StreamPlan& plan, std::size_t total, const slam::RunConfig& config,
+                          std::unique_ptr<slam::DetectionSource> detection_source,
+                          const std::optional<Trajectory>& groundtruth, RunStatus& status) {
+  namespace fs = std::filesystem;
+  const fs::path out(request.output_dir);
   slam::System system(config.camera, config.options);
   std::string detection_description;
   if (detection_source) {
     detection_description = detection_source->describe();
     system.set_detection_source(std::move(detection_source), request.wait_for_detections);
   }
-  nlohmann::json object_frames = nlohmann::json::array();
+  // objects.json is streamed to its temporary file frame by frame: a long run holds none of it.
+  std::optional<io::AtomicFile> objects_file;
+  if (system.detection_source()) {
+    objects_file.emplace((out / "objects.json").string());
+    objects_file->append("{\"frames\": [\n");
+  }
   std::vector<double> detect_ms, detection_age;
   std::map<std::string, int> object_states;  // box-frames per state
   int frames_with_boxes = 0, fresh_frames = 0;
   ProgressBar bar(request.progress, total);
 
-  // Stage names in first-seen order, and per-frame rows.
-  std::vector<std::string> stage_names;
+  StageTable stage_table;
   std::map<std::string, std::vector<double>> stage_samples;
   std::vector<double> tracking_ms, load_ms;
+  std::vector<float> rss_mib;
   std::map<std::string, std::vector<double>> counts;  // per-frame feature and inlier counts
-  std::ostringstream rows;
   int lost = 0, relocalised = 0, keyframes_inserted = 0, tracked = 0;
-  std::vector<std::vector<std::pair<std::string, double>>> frame_stages;
   std::vector<std::string> frame_prefix;
-  Stopwatch wall;
+  std::vector<PassFigures> passes;
+  bool interrupted = false;
+  std::size_t done = 0;
+  Stopwatch wall, checkpoint_watch, pass_watch;
   for (std::size_t i = 0; i < total; ++i) {
-    const io::FrameEntry& entry = sequence.frames()[i];
+    if (request.stop_requested && request.stop_requested()) {
+      interrupted = true;
+      break;
+    }
+    const io::FrameEntry& entry = plan.frames[i];
     Stopwatch load_watch;
     const io::RgbdImages images = io::load_rgbd(entry, config.camera.depth_factor);
     if (images.rgb.cols != config.camera.width || images.rgb.rows != config.camera.height)
@@ -264,15 +370,15 @@ nlohmann::json run_sequence(const RunRequest& request) {
     load_ms.push_back(load_watch.elapsed_ms());
     const slam::FrameResult r =
         system.process(images.rgb, images.depth, entry.rgb_timestamp, entry.depth_timestamp);
+    done = i + 1;
     tracked += r.state == slam::TrackingState::kOk ? 1 : 0;
     lost += r.state == slam::TrackingState::kLost ? 1 : 0;
     relocalised += r.relocalised ? 1 : 0;
     keyframes_inserted += r.keyframe ? 1 : 0;
     tracking_ms.push_back(r.times.total_ms());
-    for (const auto& [name, ms] : r.times.stages) {
-      if (stage_samples.find(name) == stage_samples.end()) stage_names.push_back(name);
-      stage_samples[name].push_back(ms);
-    }
+    rss_mib.push_back(static_cast<float>(current_rss_mib()));
+    stage_table.add_frame(r.times);
+    for (const auto& [name, ms] : r.times.stages) stage_samples[name].push_back(ms);
     std::ostringstream prefix;
     prefix << r.frame_id << ',' << std::fixed << std::setprecision(6) << r.timestamp << ','
            << slam::to_string(r.state) << ',' << r.features << ',' << r.lines << ',' << r.planes
@@ -290,22 +396,23 @@ nlohmann::json run_sequence(const RunRequest& request) {
            << dynamic_points << ',' << constrained_points << ',' << r.constrained_point_residuals
            << ',' << r.constrained_line_residuals;
     if (r.detections_used) {
-      ++frames_with_boxes;
-      fresh_frames += r.detections_fresh ? 1 : 0;
       detection_age.push_back(r.detections_age);
       if (r.detect_ms) detect_ms.push_back(*r.detect_ms);
-      object_frames.push_back(
-          {{"frame", r.frame_id},
-           {"timestamp", r.timestamp},
-           {"fresh", r.detections_fresh},
-           {"epsilon_d_px", r.dynamics_threshold},
-           {"age", r.detections_age},
-           {"dynamic_points", dynamic_points},
-           {"constrained_points", constrained_points},
-           {"dynamic_lines", count_labels(r.line_labels, slam::FeatureLabel::kDynamic)},
-           {"constrained_lines", count_labels(r.line_labels, slam::FeatureLabel::kConstrained)},
-           {"constrained_residuals", {r.constrained_point_residuals, r.constrained_line_residuals}},
-           {"objects", objects_json(r)}});
+      const nlohmann::json frame_objects = {
+          {"frame", r.frame_id},
+          {"timestamp", r.timestamp},
+          {"fresh", r.detections_fresh},
+          {"epsilon_d_px", r.dynamics_threshold},
+          {"age", r.detections_age},
+          {"dynamic_points", dynamic_points},
+          {"constrained_points", constrained_points},
+          {"dynamic_lines", count_labels(r.line_labels, slam::FeatureLabel::kDynamic)},
+          {"constrained_lines", count_labels(r.line_labels, slam::FeatureLabel::kConstrained)},
+          {"constrained_residuals", {r.constrained_point_residuals, r.constrained_line_residuals}},
+          {"objects", objects_json(r)}};
+      objects_file->append((frames_with_boxes > 0 ? ",\n" : "") + frame_objects.dump(1));
+      ++frames_with_boxes;
+      fresh_frames += r.detections_fresh ? 1 : 0;
       counts["dynamic_points"].push_back(dynamic_points);
       counts["constrained_points"].push_back(constrained_points);
     }
@@ -330,16 +437,58 @@ nlohmann::json run_sequence(const RunRequest& request) {
       counts["plane_inliers"].push_back(r.plane_inliers);
     }
     frame_prefix.push_back(prefix.str());
-    frame_stages.push_back(r.times.stages);
-    bar.update(i + 1, (i + 1) / (wall.elapsed_ms() / 1000.0), lost);
+
+    // Soak figures at the end of each pass of a repeated run.
+    if (plan.passes > 1 && (done % plan.frames_per_pass == 0 || done == total)) {
+      PassFigures p;
+      const std::size_t begin = passes.size() * plan.frames_per_pass;
+      for (std::size_t f = begin; f < done; ++f) p.tracking_ms.push_back(tracking_ms[f]);
+      p.frames = static_cast<int>(done - begin);
+      p.wall_s = pass_watch.elapsed_ms() / 1000.0;
+      pass_watch.restart();
+      p.rss_end_mib = current_rss_mib();
+      {
+        auto lock = system.map().read_lock();
+        p.keyframes_in_map = system.map().num_keyframes();
+        p.points_in_map = system.map().num_points();
+        p.lines_in_map = system.map().num_lines();
+      }
+      // Counters so far minus those of the passes before.
+      p.tracked = tracked;
+      p.lost = lost;
+      p.relocalised = relocalised;
+      p.keyframes_inserted = keyframes_inserted;
+      for (const PassFigures& q : passes) {
+        p.tracked -= q.tracked;
+        p.lost -= q.lost;
+        p.relocalised -= q.relocalised;
+        p.keyframes_inserted -= q.keyframes_inserted;
+      }
+      passes.push_back(std::move(p));
+    }
+    // A checkpoint every few seconds: what a kill would leave is a clearly partial run.
+    if (checkpoint_watch.elapsed_ms() > 2000.0 && done < total) {
+      io::write_tum_trajectory((out / "trajectory_online.txt").string(), system.online_trajectory(),
+                               "partial: the run was at frame " + std::to_string(done) + " of " +
+                                   std::to_string(total) + " (see status.json)");
+      status.running(done);
+      checkpoint_watch.restart();
+    }
+    bar.update(done, done / (wall.elapsed_ms() / 1000.0), lost);
   }
   system.finish();
   const double wall_s = wall.elapsed_ms() / 1000.0;
+  const std::size_t processed = done;
 
   // Outputs.
   const Trajectory trajectory = system.trajectory();
-  io::write_tum_trajectory((out / "trajectory.txt").string(), trajectory);
-  io::write_tum_trajectory((out / "trajectory_online.txt").string(), system.online_trajectory());
+  const std::string note = interrupted
+                               ? "interrupted after frame " + std::to_string(processed) + " of " +
+                                     std::to_string(total) + " (stopped on request)"
+                               : std::string();
+  io::write_tum_trajectory((out / "trajectory.txt").string(), trajectory, note);
+  io::write_tum_trajectory((out / "trajectory_online.txt").string(), system.online_trajectory(),
+                           note);
   io::write_file_atomic((out / "keyframes.txt").string(),
                         format_tum_keyframes(system.keyframe_trajectory()));
   std::ostringstream csv;
@@ -347,29 +496,25 @@ nlohmann::json run_sequence(const RunRequest& request) {
          "line_inliers,plane_inliers,keyframe,objects,dynamic_objects,constrained_objects,"
          "dynamic_points,constrained_points,constrained_point_residuals,"
          "constrained_line_residuals";
-  for (const auto& name : stage_names) csv << ',' << name << "_ms";
-  csv << ",total_ms\n";
+  for (const auto& name : stage_table.names) csv << ',' << name << "_ms";
+  csv << ",total_ms,rss_mib\n";
   for (std::size_t i = 0; i < frame_prefix.size(); ++i) {
-    csv << frame_prefix[i];
-    for (const auto& name : stage_names) {
-      double ms = 0.0;
-      for (const auto& s : frame_stages[i])
-        if (s.first == name) ms += s.second;
-      csv << ',' << std::fixed << std::setprecision(3) << ms;
-    }
-    csv << ',' << std::fixed << std::setprecision(3) << tracking_ms[i] << '\n';
+    csv << frame_prefix[i] << std::fixed << std::setprecision(3);
+    for (std::size_t k = 0; k < stage_table.names.size(); ++k) csv << ',' << stage_table.at(i, k);
+    csv << ',' << tracking_ms[i] << ',' << std::setprecision(1) << rss_mib[i] << '\n';
   }
   io::write_file_atomic((out / "timings.csv").string(), csv.str());
 
   nlohmann::json summary;
+  summary["state"] = interrupted ? "interrupted" : "complete";
   summary["sequence"] = fs::path(request.sequence_dir).lexically_normal().string();
   summary["camera_source"] = config.camera_source;
   summary["sequential"] = config.options.sequential;
-  summary["frames"] = total;
+  summary["frames"] = processed;
   summary["tracked_frames"] = tracked;
-  summary["tracked_ratio"] = total == 0 ? 0.0 : static_cast<double>(tracked) / total;
+  summary["tracked_ratio"] = processed == 0 ? 0.0 : static_cast<double>(tracked) / processed;
   summary["lost_frames"] = lost;
-  summary["not_initialized_frames"] = static_cast<int>(total) - tracked - lost;
+  summary["not_initialized_frames"] = static_cast<int>(processed) - tracked - lost;
   summary["relocalisations"] = relocalised;
   summary["keyframes_inserted"] = keyframes_inserted;
   {
@@ -407,15 +552,16 @@ nlohmann::json run_sequence(const RunRequest& request) {
     d["detector_ms"] = {{"median", det.median}, {"p95", det.p95}, {"count", det.count}};
     d["object_frames"] = object_states;  // box-frames per state
     summary["dynamics"] = d;
-    if (frames_with_boxes > 0)
-      io::write_file_atomic((out / "objects.json").string(),
-                            nlohmann::json({{"frames", object_frames}}).dump(1) + "\n");
+    if (objects_file && frames_with_boxes > 0) {
+      objects_file->append("\n]}\n");
+      objects_file->commit();
+    }
   }
   summary["wall_time_s"] = wall_s;
-  summary["frames_per_second"] = wall_s > 0 ? total / wall_s : 0.0;
+  summary["frames_per_second"] = wall_s > 0 ? processed / wall_s : 0.0;
   summary["peak_rss_mib"] = peak_rss_mib();
   nlohmann::json stages = nlohmann::json::object();
-  for (const auto& name : stage_names) {
+  for (const auto& name : stage_table.names) {
     // Stages that did not run on a frame count as 0 there only for the per-frame total.
     const SampleStats s = compute_stats(stage_samples[name]);
     stages[name] = {
@@ -453,8 +599,93 @@ nlohmann::json run_sequence(const RunRequest& request) {
       summary["eval_error"] = e.what();
     }
   }
+  if (plan.passes > 1) {
+    summary["repeat"] = plan.passes;
+    nlohmann::json pass_rows = nlohmann::json::array();
+    for (std::size_t k = 0; k < passes.size(); ++k) {
+      const PassFigures& p = passes[k];
+      const SampleStats t = compute_stats(p.tracking_ms);
+      nlohmann::json row = {{"pass", k + 1},
+                            {"frames", p.frames},
+                            {"tracked_frames", p.tracked},
+                            {"lost_frames", p.lost},
+                            {"relocalisations", p.relocalised},
+                            {"keyframes_inserted", p.keyframes_inserted},
+                            {"tracking_median_ms", t.median},
+                            {"tracking_p95_ms", t.p95},
+                            {"frames_per_second", p.wall_s > 0 ? p.frames / p.wall_s : 0.0},
+                            {"rss_end_mib", p.rss_end_mib},
+                            {"keyframes_in_map", p.keyframes_in_map},
+                            {"points_in_map", p.points_in_map},
+                            {"lines_in_map", p.lines_in_map}};
+      // Each pass's own ATE (its own alignment), from the final trajectory.
+      const double begin = plan.first + k * plan.period - 0.5 * plan.gap;
+      const double end = plan.last + k * plan.period + 0.5 * plan.gap;
+      Trajectory part;
+      for (const StampedPose& pose : trajectory)
+        if (pose.timestamp >= begin && pose.timestamp < end) part.push_back(pose);
+      if (groundtruth && !part.empty()) {
+        try {
+          row["ate_rmse_m"] = eval::evaluate(*groundtruth, part).ate.translation.rmse;
+        } catch (const InputError&) {
+        }
+      }
+      pass_rows.push_back(row);
+    }
+    summary["passes"] = pass_rows;
+  }
   io::write_file_atomic((out / "summary.json").string(), summary.dump(2) + "\n");
+  status.finished(interrupted, processed);
   return summary;
+}
+
+}  // namespace
+
+nlohmann::json run_sequence(const RunRequest& request) {
+  namespace fs = std::filesystem;
+  if (request.repeat < 1) throw InputError("--repeat: must be at least 1");
+  io::SequenceOptions seq_options;
+  if (request.associations_path) seq_options.associations_file = *request.associations_path;
+  const io::RgbdSequence sequence = io::RgbdSequence::open(request.sequence_dir, seq_options);
+  for (const auto& warning : sequence.warnings())
+    std::cerr << "mcslam: warning: " << warning << "\n";
+  slam::RunConfig config = slam::resolve_run_config(request.sequence_dir, request.config_path);
+  if (request.sequential) config.options.sequential = *request.sequential;
+  if (request.features)
+    apply_feature_list(*request.features, config.options.use.points, config.options.use.lines,
+                       config.options.use.planes);
+  io::ensure_directory(request.output_dir);
+  const fs::path out(request.output_dir);
+  io::write_file_atomic((out / "config.yaml").string(), slam::to_yaml(config));
+
+  const StreamPlan plan = plan_stream(sequence.frames(), request.repeat);
+  // Ground truth is read before the run so that a broken file is reported at once.
+  std::optional<Trajectory> groundtruth;
+  if (const auto gt_path = sequence.groundtruth_path()) {
+    groundtruth = io::read_tum_trajectory(*gt_path);
+    if (is_bonn(request.sequence_dir)) groundtruth = eval::bonn_marker_to_camera(*groundtruth);
+    if (request.repeat > 1) groundtruth = repeat_groundtruth(*groundtruth, plan);
+  }
+
+  if (request.no_dynamics) config.options.tracker.dynamics.enabled = false;
+  if (request.no_constraints) config.options.tracker.dynamics.constraints = false;
+  std::unique_ptr<slam::DetectionSource> detection_source =
+      make_detection_source(request, config.camera);
+  if (!detection_source)
+    std::cerr << "mcslam: warning: no --model or --detections given: running on geometry only, "
+                 "without dynamic-object handling\n";
+  if (request.save_overlays) io::ensure_directory((out / "overlays").string());
+
+  std::size_t total = plan.frames.size();
+  if (request.max_frames > 0) total = std::min(total, static_cast<std::size_t>(request.max_frames));
+  RunStatus status((out / "status.json").string(), total);
+  try {
+    return run_frames(request, sequence, plan, total, config, std::move(detection_source),
+                      groundtruth, status);
+  } catch (const InputError& e) {
+    status.failed(e.what());
+    throw;
+  }
 }
 
 std::string summary_text(const nlohmann::json& s) {
@@ -479,6 +710,25 @@ std::string summary_text(const nlohmann::json& s) {
     for (const auto& [state, n] : d["object_frames"].items())
       o << ", " << state << " " << n.get<int>();
     o << "\n";
+  }
+  if (s.value("state", "complete") == "interrupted") o << "interrupted: stopped on request\n";
+  if (s.contains("passes")) {
+    o << "pass  frames  tracked  lost  reloc  tracking ms  fps    RSS MiB  keyframes  points"
+      << (s["passes"].front().contains("ate_rmse_m") ? "  ATE m" : "") << "\n";
+    for (const auto& p : s["passes"]) {
+      char row[160];
+      std::snprintf(row, sizeof(row), "%4d  %6d  %6.1f%%  %4d  %5d  %11.1f  %5.1f  %7.0f  %9d  %6d",
+                    p["pass"].get<int>(), p["frames"].get<int>(),
+                    100.0 * p["tracked_frames"].get<int>() / std::max(1, p["frames"].get<int>()),
+                    p["lost_frames"].get<int>(), p["relocalisations"].get<int>(),
+                    p["tracking_median_ms"].get<double>(), p["frames_per_second"].get<double>(),
+                    p["rss_end_mib"].get<double>(), p["keyframes_in_map"].get<int>(),
+                    p["points_in_map"].get<int>());
+      o << row;
+      if (p.contains("ate_rmse_m"))
+        o << "  " << std::setprecision(4) << p["ate_rmse_m"].get<double>();
+      o << "\n";
+    }
   }
   if (s.contains("ate_rmse_m"))
     o << "ATE RMSE " << std::setprecision(4) << s["ate_rmse_m"].get<double>() << " m over "

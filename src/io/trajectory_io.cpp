@@ -53,8 +53,10 @@ Trajectory read_tum_trajectory(const std::string& path) {
   return trajectory;
 }
 
-void write_tum_trajectory(const std::string& path, const Trajectory& trajectory) {
-  std::string out = "# timestamp tx ty tz qx qy qz qw\n";
+void write_tum_trajectory(const std::string& path, const Trajectory& trajectory,
+                          const std::string& note) {
+  std::string out = note.empty() ? std::string() : "# " + note + "\n";
+  out += "# timestamp tx ty tz qx qy qz qw\n";
   out.reserve(out.size() + trajectory.size() * 128);
   for (const StampedPose& pose : trajectory) {
     const Eigen::Vector3d& t = pose.T_w_c.translation();

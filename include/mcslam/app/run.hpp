@@ -39,6 +39,13 @@ struct RunRequest {
   bool no_constraints = false;
   /// Also write overlays/<frame>.jpg: annotated frames as in the paper's Fig. 7.
   bool save_overlays = false;
+  /// Play the sequence this many times in a row as one stream (a soak run): pass k's timestamps
+  /// (and its ground truth) are shifted by k sequence lengths, so the camera jumps back to the
+  /// start at each pass. The summary gets per-pass figures (speed, memory, map size, ATE).
+  int repeat = 1;
+  /// Asked between frames; when it returns true the run stops early, writes every output for the
+  /// frames processed so far and marks them interrupted (Ctrl-C in the command-line app).
+  std::function<bool()> stop_requested;
 };
 
 /// Annotates an (undistorted) colour image as in the paper's Fig. 7: static points green, lines
@@ -55,6 +62,13 @@ void apply_feature_list(const std::string& list, bool& points, bool& lines, bool
 /// each object's box, track, state and the figures behind Algorithms 1 and 2); with save_map
 /// map.ply and map.json; with save_overlays overlays/. Returns the summary. Throws InputError
 /// for bad input.
+///
+/// Every file is replaced atomically (write, fsync, rename), so a crash or a kill never leaves a
+/// torn file. status.json says how far the run got: {"state": "running"} with the frames done,
+/// rewritten every few seconds together with a partial trajectory_online.txt (its first line
+/// says "# partial: ..."); "complete", "interrupted" (stop_requested) or "failed" (with the
+/// error) at the end. Files of an earlier run in the same folder are replaced only when this run
+/// writes them.
 nlohmann::json run_sequence(const RunRequest& request);
 
 /// One line per figure a person wants to see after a run.

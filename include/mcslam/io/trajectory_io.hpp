@@ -15,7 +15,8 @@ Trajectory read_tum_trajectory(const std::string& path);
 
 /// Writes a TUM trajectory atomically (see write_file_atomic) with a
 /// "# timestamp tx ty tz qx qy qz qw" header line; timestamps with 6 decimals, the other values
-/// with 9 significant digits.
-void write_tum_trajectory(const std::string& path, const Trajectory& trajectory);
+/// with 9 significant digits. A non-empty `note` becomes a first comment line "# <note>".
+void write_tum_trajectory(const std::string& path, const Trajectory& trajectory,
+                          const std::string& note = {});
 
 }  // namespace mcslam::io
