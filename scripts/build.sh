@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Installs dependencies (Debian 12 packages) and builds mcslam into ./build (CLI: ./build/mcslam).
-# Usage: scripts/build.sh [preset]   (release by default; also debug, asan)
+# Usage: scripts/build.sh [preset]   (release by default; also debug, asan, tsan, fuzz)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 preset="${1:-release}"

@@ -10,7 +10,6 @@ PACKAGES=(
   libeigen3-dev
   libopencv-dev libopencv-contrib-dev
   libceres-dev
-  libyaml-cpp-dev
   libcli11-dev
   libspdlog-dev libfmt-dev
   nlohmann-json3-dev

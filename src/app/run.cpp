@@ -353,6 +353,34 @@ nlohmann::json run_frames(const RunRequest& request, const io::RgbdSequence& seq
   bool interrupted = false;
   std::size_t done = 0;
   Stopwatch wall, checkpoint_watch, pass_watch;
+  // Soak figures of a repeated run, taken when a pass ends (or the run stops in one).
+  auto record_pass = [&] {
+    PassFigures p;
+    const std::size_t begin = passes.size() * plan.frames_per_pass;
+    for (std::size_t f = begin; f < done; ++f) p.tracking_ms.push_back(tracking_ms[f]);
+    p.frames = static_cast<int>(done - begin);
+    p.wall_s = pass_watch.elapsed_ms() / 1000.0;
+    pass_watch.restart();
+    p.rss_end_mib = current_rss_mib();
+    {
+      auto lock = system.map().read_lock();
+      p.keyframes_in_map = system.map().num_keyframes();
+      p.points_in_map = system.map().num_points();
+      p.lines_in_map = system.map().num_lines();
+    }
+    // Counters so far minus those of the passes before.
+    p.tracked = tracked;
+    p.lost = lost;
+    p.relocalised = relocalised;
+    p.keyframes_inserted = keyframes_inserted;
+    for (const PassFigures& q : passes) {
+      p.tracked -= q.tracked;
+      p.lost -= q.lost;
+      p.relocalised -= q.relocalised;
+      p.keyframes_inserted -= q.keyframes_inserted;
+    }
+    passes.push_back(std::move(p));
+  };
   for (std::size_t i = 0; i < total; ++i) {
     if (request.stop_requested && request.stop_requested()) {
       interrupted = true;
@@ -438,34 +466,7 @@ nlohmann::json run_frames(const RunRequest& request, const io::RgbdSequence& seq
     }
     frame_prefix.push_back(prefix.str());
 
-    // Soak figures at the end of each pass of a repeated run.
-    if (plan.passes > 1 && (done % plan.frames_per_pass == 0 || done == total)) {
-      PassFigures p;
-      const std::size_t begin = passes.size() * plan.frames_per_pass;
-      for (std::size_t f = begin; f < done; ++f) p.tracking_ms.push_back(tracking_ms[f]);
-      p.frames = static_cast<int>(done - begin);
-      p.wall_s = pass_watch.elapsed_ms() / 1000.0;
-      pass_watch.restart();
-      p.rss_end_mib = current_rss_mib();
-      {
-        auto lock = system.map().read_lock();
-        p.keyframes_in_map = system.map().num_keyframes();
-        p.points_in_map = system.map().num_points();
-        p.lines_in_map = system.map().num_lines();
-      }
-      // Counters so far minus those of the passes before.
-      p.tracked = tracked;
-      p.lost = lost;
-      p.relocalised = relocalised;
-      p.keyframes_inserted = keyframes_inserted;
-      for (const PassFigures& q : passes) {
-        p.tracked -= q.tracked;
-        p.lost -= q.lost;
-        p.relocalised -= q.relocalised;
-        p.keyframes_inserted -= q.keyframes_inserted;
-      }
-      passes.push_back(std::move(p));
-    }
+    if (plan.passes > 1 && (done % plan.frames_per_pass == 0 || done == total)) record_pass();
     // A checkpoint every few seconds: what a kill would leave is a clearly partial run.
     if (checkpoint_watch.elapsed_ms() > 2000.0 && done < total) {
       io::write_tum_trajectory((out / "trajectory_online.txt").string(), system.online_trajectory(),
@@ -476,6 +477,7 @@ nlohmann::json run_frames(const RunRequest& request, const io::RgbdSequence& seq
     }
     bar.update(done, done / (wall.elapsed_ms() / 1000.0), lost);
   }
+  if (plan.passes > 1 && done > passes.size() * plan.frames_per_pass) record_pass();  // stopped
   system.finish();
   const double wall_s = wall.elapsed_ms() / 1000.0;
   const std::size_t processed = done;
@@ -712,7 +714,7 @@ std::string summary_text(const nlohmann::json& s) {
     o << "\n";
   }
   if (s.value("state", "complete") == "interrupted") o << "interrupted: stopped on request\n";
-  if (s.contains("passes")) {
+  if (s.contains("passes") && !s["passes"].empty()) {
     o << "pass  frames  tracked  lost  reloc  tracking ms  fps    RSS MiB  keyframes  points"
       << (s["passes"].front().contains("ate_rmse_m") ? "  ATE m" : "") << "\n";
     for (const auto& p : s["passes"]) {

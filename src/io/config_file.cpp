@@ -1,21 +1,18 @@
 #include "mcslam/io/config_file.hpp"
 
-#include <yaml-cpp/yaml.h>
-
-#include <algorithm>
 #include <cctype>
 #include <cmath>
-#include <cstdio>
-#include <cstring>
 #include <limits>
-#include <string_view>
 
 #include "io/text_util.hpp"
+#include "io/yaml_subset.hpp"
 #include "mcslam/core/error.hpp"
 
 namespace mcslam::io {
 
 namespace {
+
+using detail::YamlNode;
 
 std::string trim(const std::string& s) {
   const auto first = s.find_first_not_of(" \t\r\n");
@@ -24,20 +21,16 @@ std::string trim(const std::string& s) {
   return s.substr(first, last - first + 1);
 }
 
-int line_of(const YAML::Node& node, int fallback) {
-  const YAML::Mark mark = node.Mark();
-  return mark.line >= 0 ? mark.line + 1 : fallback;
-}
-
 bool is_matrix_tag(const std::string& tag) {
   return tag.find("opencv-matrix") != std::string::npos;
 }
 
 // A map with rows, cols, dt and data (OpenCV's FileStorage layout), or tagged !!opencv-matrix.
-bool looks_like_matrix(const YAML::Node& node) {
-  if (!node.IsMap()) return false;
-  if (is_matrix_tag(node.Tag())) return true;
-  return node.size() == 4 && node["rows"] && node["cols"] && node["dt"] && node["data"];
+bool looks_like_matrix(const YamlNode& node) {
+  if (node.kind != YamlNode::Kind::kMap) return false;
+  if (is_matrix_tag(node.tag)) return true;
+  return node.entries.size() == 4 && node.find("rows") && node.find("cols") && node.find("dt") &&
+         node.find("data");
 }
 
 }  // namespace
@@ -57,39 +50,41 @@ struct ConfigFileBuilder {
       throw InputError(file_error(where(line), "duplicate key '" + key + "'"));
   }
 
-  Leaf matrix_leaf(const std::string& key, const YAML::Node& node, int line) const {
+  Leaf matrix_leaf(const std::string& key, const YamlNode& node, int line) const {
     auto bad = [&](const std::string& problem) {
       return InputError(
           file_error(where(line), "key '" + key + "': malformed OpenCV matrix (" + problem + ")"));
     };
     auto integer = [&](const char* name) {
-      const YAML::Node n = node[name];
-      if (!n || !n.IsScalar()) throw bad(std::string("'") + name + "' must be an integer");
-      const auto v = detail::parse_integer(trim(n.Scalar()));
+      const YamlNode* n = node.find(name);
+      if (!n || n->kind != YamlNode::Kind::kScalar)
+        throw bad(std::string("'") + name + "' must be an integer");
+      const auto v = detail::parse_integer(trim(n->scalar));
       if (!v || *v < 0 || *v > std::numeric_limits<int>::max())
-        throw bad(std::string("'") + name + "' must be a non-negative integer, got '" + n.Scalar() +
+        throw bad(std::string("'") + name + "' must be a non-negative integer, got '" + n->scalar +
                   "'");
       return *v;
     };
     const long long rows = integer("rows");
     const long long cols = integer("cols");
-    const YAML::Node dt = node["dt"];
-    if (!dt || !dt.IsScalar()) throw bad("'dt' must be a type such as d, f or 3f");
-    const std::string type = trim(dt.Scalar());
+    const YamlNode* dt = node.find("dt");
+    if (!dt || dt->kind != YamlNode::Kind::kScalar)
+      throw bad("'dt' must be a type such as d, f or 3f");
+    const std::string type = trim(dt->scalar);
     long long channels = 1;
     if (!type.empty() && std::isdigit(static_cast<unsigned char>(type.front()))) {
       const auto digits = type.find_first_not_of("0123456789");
       channels = detail::parse_integer(type.substr(0, digits)).value_or(0);
     }
     if (channels <= 0) throw bad("bad 'dt' '" + type + "'");
-    const YAML::Node data = node["data"];
-    if (!data || !data.IsSequence()) throw bad("'data' must be a list");
+    const YamlNode* data = node.find("data");
+    if (!data || data->kind != YamlNode::Kind::kSequence) throw bad("'data' must be a list");
     Leaf leaf;
     leaf.kind = Kind::kMatrix;
     leaf.line = line;
-    for (const YAML::Node& item : data) {
-      if (!item.IsScalar()) throw bad("'data' items must be numbers");
-      leaf.items.push_back(item.Scalar());
+    for (const YamlNode& item : data->items) {
+      if (item.kind != YamlNode::Kind::kScalar) throw bad("'data' items must be numbers");
+      leaf.items.push_back(item.scalar);
     }
     if (static_cast<long long>(leaf.items.size()) != rows * cols * channels)
       throw bad("rows x cols x channels = " + std::to_string(rows * cols * channels) + " but " +
@@ -97,35 +92,32 @@ struct ConfigFileBuilder {
     return leaf;
   }
 
-  void flatten(const std::string& prefix, const YAML::Node& node, int line) {
-    if (node.IsMap() && node.size() > 0 && !looks_like_matrix(node)) {
-      for (auto it = node.begin(); it != node.end(); ++it) {
-        const int key_line = line_of(it->first, line);
-        if (!it->first.IsScalar())
-          throw InputError(file_error(where(key_line), "keys must be plain names"));
-        const std::string name = it->first.Scalar();
-        flatten(prefix.empty() ? name : prefix + "." + name, it->second, key_line);
-      }
+  void flatten(const std::string& prefix, const YamlNode& node, int line) {
+    // The top level is always a map of settings, even one that looks like a matrix.
+    const bool matrix = !prefix.empty() && looks_like_matrix(node);
+    if (node.kind == YamlNode::Kind::kMap && !node.entries.empty() && !matrix) {
+      for (const detail::YamlEntry& entry : node.entries)
+        flatten(prefix.empty() ? entry.key : prefix + "." + entry.key, entry.value, entry.line);
       return;
     }
     if (prefix.empty()) return;  // empty top-level map
     Leaf leaf;
     leaf.line = line;
-    if (looks_like_matrix(node)) {
+    if (matrix) {
       leaf = matrix_leaf(prefix, node, line);
-    } else if (node.IsScalar()) {
+    } else if (node.kind == YamlNode::Kind::kScalar) {
       leaf.kind = Kind::kScalar;
-      leaf.scalar = node.Scalar();
-    } else if (node.IsSequence()) {
+      leaf.scalar = node.scalar;
+    } else if (node.kind == YamlNode::Kind::kSequence) {
       leaf.kind = Kind::kSequence;
-      for (const YAML::Node& item : node) {
-        if (item.IsScalar()) {
-          leaf.items.push_back(item.Scalar());
+      for (const YamlNode& item : node.items) {
+        if (item.kind == YamlNode::Kind::kScalar) {
+          leaf.items.push_back(item.scalar);
         } else {
           leaf.nested_items = true;
         }
       }
-    } else if (node.IsMap()) {
+    } else if (node.kind == YamlNode::Kind::kMap) {
       leaf.kind = Kind::kMap;  // an empty map
     } else {
       leaf.kind = Kind::kNull;
@@ -138,118 +130,17 @@ ConfigFile ConfigFile::load(const std::string& path) {
   return from_string(detail::read_text_file(path), path);
 }
 
-namespace {
-
-/// yaml-cpp 0.7 (Debian 12) loops forever, allocating, when a ',' comes where a block-level node
-/// should start: "," or ",]" alone, "!tag ,", or a line starting with ',' after an indented map
-/// (found by fuzz/fuzz_settings). Such text is not valid YAML (a plain scalar cannot start with
-/// ','), so it is rejected first with the syntax error yaml-cpp should have given. A node starts
-/// at a line start, after "- ", "? ", ": ", "--- " and after a tag or anchor. Quoted and flow
-/// text is followed across lines, so "[1\n, 2]" and "a: ',x'" stay valid.
-void reject_comma_node(const std::string& text, const std::string& name) {
-  int flow_depth = 0;
-  char quote = 0;           // ' or " while inside a quoted scalar
-  bool node_start = true;   // the next token starts a node
-  bool token_start = true;  // the next character starts a token
-  int line = 1;
-  auto blank = [&](std::size_t i) {
-    return i >= text.size() || text[i] == ' ' || text[i] == '\t' || text[i] == '\r' ||
-           text[i] == '\n';
-  };
-  for (std::size_t i = 0; i < text.size(); ++i) {
-    const char c = text[i];
-    if (c == '\n') ++line;
-    // YAML allows no C0 control character but tab, line feed and carriage return (yaml-cpp
-    // loops on some, e.g. a NUL byte before a ',').
-    if (static_cast<unsigned char>(c) < 0x20 && c != '\t' && c != '\n' && c != '\r') {
-      char code[8];
-      std::snprintf(code, sizeof(code), "0x%02x", static_cast<unsigned>(c));
-      throw InputError(file_error(detail::at_line(name, line),
-                                  std::string("not a YAML text: control character ") + code));
-    }
-    if (quote) {
-      if (c == '\\' && quote == '"')
-        ++i;
-      else if (c == quote)
-        quote = 0;
-      continue;
-    }
-    if (c == '\n') {
-      node_start = token_start = true;
-      continue;
-    }
-    if (blank(i)) {
-      token_start = true;
-      continue;
-    }
-    const bool column_zero = i == 0 || text[i - 1] == '\n';
-    if ((c == '#' && token_start) || (c == '%' && column_zero)) {
-      while (i + 1 < text.size() && text[i + 1] != '\n') ++i;  // a comment or a directive
-      continue;
-    }
-    if (node_start && flow_depth == 0) {
-      if (c == ',')
-        throw InputError(file_error(detail::at_line(name, line),
-                                    "YAML syntax error: a node cannot start with ',' outside "
-                                    "[ ] or { }"));
-      if ((c == '!' || c == '&') && token_start) {
-        // A tag or anchor (it ends at a blank or a flow indicator): the node follows it.
-        while (!blank(i + 1) && std::strchr(",[]{}", text[i + 1]) == nullptr) ++i;
-        token_start = true;
-        continue;
-      }
-      if ((c == '-' || c == '?' || c == ':') && blank(i + 1)) continue;  // an indicator
-      if (c == '-' && text.compare(i, 3, "---") == 0 && blank(i + 3)) {  // a document marker
-        i += 2;
-        continue;
-      }
-    }
-    if ((c == '\'' || c == '"') && token_start) {
-      quote = c;
-    } else if (c == '[' || c == '{') {
-      ++flow_depth;
-    } else if ((c == ']' || c == '}') && flow_depth > 0) {
-      --flow_depth;
-    } else if (c == ':' && blank(i + 1) && flow_depth == 0) {
-      node_start = token_start = true;  // "key: value": the value is a node
-      continue;
-    }
-    node_start = false;
-    token_start = c == ',' || c == '[' || c == '{';
-  }
-}
-
-}  // namespace
-
 ConfigFile ConfigFile::from_string(const std::string& yaml, const std::string& name) {
-  std::string text = yaml;
-  if (text.rfind("\xEF\xBB\xBF", 0) == 0) text.erase(0, 3);  // UTF-8 byte order mark
-  // OpenCV's "%YAML:1.0" directive is not YAML: blank that line, keeping the line numbers.
-  if (text.rfind("%YAML:", 0) == 0) text.erase(0, std::min(text.find('\n'), text.size()));
-
+  // The parser skips a byte order mark and directives such as OpenCV's "%YAML:1.0", and rejects
+  // a second document.
+  const YamlNode root = detail::parse_yaml(yaml, name);
   ConfigFile config;
   config.path_ = name;
-  std::vector<YAML::Node> documents;
-  reject_comma_node(text, name);
-  try {
-    documents = YAML::LoadAll(text);
-  } catch (const YAML::Exception& e) {
-    const std::string where = e.mark.line >= 0 ? detail::at_line(name, e.mark.line + 1) : name;
-    throw InputError(file_error(where, "YAML syntax error: " + e.msg));
-  }
-  if (documents.size() > 1)
+  if (root.kind == YamlNode::Kind::kNull) return config;
+  if (root.kind != YamlNode::Kind::kMap)
     throw InputError(
-        file_error(name, "expected one YAML document, got " + std::to_string(documents.size())));
-  if (documents.empty() || documents.front().IsNull()) return config;
-  const YAML::Node& root = documents.front();
-  if (!root.IsMap())
-    throw InputError(file_error(detail::at_line(name, line_of(root, 1)),
-                                "the top level must be a map of settings"));
-  try {
-    ConfigFileBuilder{config}.flatten("", root, 1);
-  } catch (const YAML::Exception& e) {
-    throw InputError(file_error(name, std::string("cannot read YAML: ") + e.what()));
-  }
+        file_error(detail::at_line(name, root.line), "the top level must be a map of settings"));
+  ConfigFileBuilder{config}.flatten("", root, root.line);
   return config;
 }
 

@@ -174,6 +174,10 @@ TEST(LongRun, SigintStopsTheRunAndWritesTheResultsSoFar) {
   const int frames = summary["frames"].get<int>();
   EXPECT_GT(frames, 0);
   EXPECT_LT(frames, 6000);
+  // The pass the run stopped in is reported as far as it went.
+  int pass_frames = 0;
+  for (const auto& pass : summary["passes"]) pass_frames += pass["frames"].get<int>();
+  EXPECT_EQ(pass_frames, frames);
   const nlohmann::json final_status = read_json(out / "status.json");
   EXPECT_EQ(final_status["state"], "interrupted");
   EXPECT_EQ(final_status["frames_done"], frames);
