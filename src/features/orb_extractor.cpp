@@ -12,6 +12,7 @@
 
 #include "features/orb_pattern.hpp"
 #include "mcslam/core/error.hpp"
+#include "mcslam/core/parallel.hpp"
 #include "mcslam/features/orb.hpp"
 
 namespace mcslam::features {
@@ -350,9 +351,9 @@ OrbFeatures OrbExtractor::extract(const cv::Mat& gray) const {
   }
   if (used_levels == 0) return result;
 
-  cv::parallel_for_(cv::Range(0, used_levels), [&](const cv::Range& range) {
+  parallel_for(0, used_levels, [&](int first, int last) {
     std::vector<cv::KeyPoint> scratch;
-    for (int l = range.start; l < range.end; ++l) {
+    for (int l = first; l < last; ++l) {
       Level& level = levels[static_cast<std::size_t>(l)];
       detect_corners(level.image, options_, scratch, level.candidates);
     }
@@ -389,8 +390,8 @@ OrbFeatures OrbExtractor::extract(const cv::Mat& gray) const {
     deficit -= given;
   }
 
-  cv::parallel_for_(cv::Range(0, used_levels), [&](const cv::Range& range) {
-    for (int l = range.start; l < range.end; ++l) {
+  parallel_for(0, used_levels, [&](int first, int last) {
+    for (int l = first; l < last; ++l) {
       Level& level = levels[static_cast<std::size_t>(l)];
       const std::vector<Candidate> kept = distribute(
           level.candidates, float(kBorder), float(kBorder), float(level.image.cols - kBorder),

@@ -7,6 +7,7 @@
 #include <opencv2/core/utility.hpp>
 
 #include "mcslam/core/error.hpp"
+#include "mcslam/core/parallel.hpp"
 #include "random.hpp"
 
 namespace mcslam::synth {
@@ -258,8 +259,8 @@ cv::Mat apply_kinect_depth_noise(const cv::Mat& depth, std::uint64_t seed) {
   constexpr double kFactor = 5000.0;
   cv::Mat out(depth.size(), CV_32FC1);
   const int w = depth.cols, h = depth.rows;
-  cv::parallel_for_(cv::Range(0, h), [&](const cv::Range& rows) {
-    for (int y = rows.start; y < rows.end; ++y) {
+  parallel_for(0, h, [&](int first, int last) {
+    for (int y = first; y < last; ++y) {
       const float* row = depth.ptr<float>(y);
       float* dst = out.ptr<float>(y);
       for (int x = 0; x < w; ++x) {
@@ -303,8 +304,8 @@ RenderedFrame render_rows(const PinholeCamera& camera, const RenderOptions& opti
   cv::Mat colour(h, w, CV_32FC3);
 
   // Pass 1: one ray through each pixel centre.
-  cv::parallel_for_(cv::Range(0, h), [&](const cv::Range& rows) {
-    for (int y = rows.start; y < rows.end; ++y) {
+  parallel_for(0, h, [&](int first, int last) {
+    for (int y = first; y < last; ++y) {
       const FrameSetup& f = setup_of(y);
       float* depth_row = frame.depth.ptr<float>(y);
       std::int16_t* label_row = frame.labels.ptr<std::int16_t>(y);
@@ -327,8 +328,8 @@ RenderedFrame render_rows(const PinholeCamera& camera, const RenderOptions& opti
   static constexpr double kSub[4][2] = {
       {-0.125, -0.375}, {0.375, -0.125}, {0.125, 0.375}, {-0.375, 0.125}};
   frame.rgb.create(h, w, CV_8UC3);
-  cv::parallel_for_(cv::Range(0, h), [&](const cv::Range& rows) {
-    for (int y = rows.start; y < rows.end; ++y) {
+  parallel_for(0, h, [&](int first, int last) {
+    for (int y = first; y < last; ++y) {
       const FrameSetup& f = setup_of(y);
       const int* prim_row = prim.ptr<int>(y);
       const cv::Vec3f* colour_row = colour.ptr<cv::Vec3f>(y);

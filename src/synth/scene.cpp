@@ -9,6 +9,7 @@
 
 #include "dynamic.hpp"
 #include "mcslam/core/error.hpp"
+#include "mcslam/core/parallel.hpp"
 #include "random.hpp"
 #include "texture.hpp"
 
@@ -42,8 +43,8 @@ std::vector<std::shared_ptr<const Texture>> make_textures(const std::vector<Text
     for (std::size_t f = 0; f < jobs[j].faces.size(); ++f)
       layers.emplace_back(static_cast<int>(j), static_cast<int>(f));
   std::vector<std::vector<cv::Mat>> mips(layers.size());
-  cv::parallel_for_(cv::Range(0, static_cast<int>(layers.size())), [&](const cv::Range& range) {
-    for (int k = range.start; k < range.end; ++k) {
+  parallel_for(0, static_cast<int>(layers.size()), [&](int first, int last) {
+    for (int k = first; k < last; ++k) {
       const TextureJob& job = jobs[layers[k].first];
       const auto [su, sv] = job.faces[layers[k].second];
       const std::uint64_t seed = detail::hash_combine(job.seed, layers[k].second);
