@@ -2,6 +2,8 @@
 # The fault table: injects each fault into a copy of a sequence (`mcslam faults`), runs mcslam on
 # it, and prints per fault the frames tracked and lost, relocalisations, the ATE of the whole run
 # and the ATE of the poses after the fault (that segment aligned on its own). Needs a build.
+# A sequence with its own detections.json (a synthetic scene's ground-truth boxes, or the output
+# of `mcslam detect`) is run with those boxes, which the copies carry through the faults.
 # Usage: scripts/faults.sh [--sequential] [--output DIR] [SEQUENCE_DIR]
 # (default: ../shared/data/tum/rgbd_dataset_freiburg1_rpy, else a synthetic room it renders)
 set -euo pipefail
@@ -39,7 +41,10 @@ for fault in "${faults[@]}"; do
   [ "$fault" = none ] || fault_args=(--fault "$fault")
   "$exe" faults "$seq" --output "$copy" "${fault_args[@]}" -q
   echo "faults: $fault" >&2
-  if "$exe" run "$copy" --output "$out/runs/$name" "$mode" -q 2> "$out/runs_$name.err"; then
+  box_args=()
+  [ -f "$copy/detections.json" ] && box_args=(--detections "$copy/detections.json")
+  if "$exe" run "$copy" --output "$out/runs/$name" "$mode" "${box_args[@]}" -q \
+       2> "$out/runs_$name.err"; then
     rows+=("$name")
   else
     echo "faults: $fault: run FAILED ($(tail -1 "$out/runs_$name.err"))" >&2

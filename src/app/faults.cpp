@@ -13,6 +13,7 @@
 #include "mcslam/io/files.hpp"
 #include "mcslam/io/sequence.hpp"
 #include "mcslam/io/trajectory_io.hpp"
+#include "mcslam/perception/detection.hpp"
 #include "mcslam/slam/config.hpp"
 
 namespace mcslam::app {
@@ -41,6 +42,9 @@ struct OutFrame {
   double t_rgb = 0, t_depth = 0;
   std::string rgb, depth;
   bool keep = true;
+  /// The frame's boxes from the source's detections.json (the ground truth of a synthetic scene);
+  /// a frame it has no entry for gets none.
+  std::vector<perception::Detection> boxes;
 };
 
 std::string absolute(const std::string& path) {
@@ -131,10 +135,19 @@ nlohmann::json write_faulty_sequence(const FaultRequest& request) {
   const io::RgbdSequence source = io::RgbdSequence::open(request.sequence_dir);
   const slam::RunConfig config = slam::resolve_run_config(request.sequence_dir, std::nullopt);
   const int n = static_cast<int>(source.frames().size());
+  const fs::path boxes_path = fs::path(source.directory()) / "detections.json";
+  std::optional<perception::DetectionsFile> boxes;
+  if (fs::exists(boxes_path)) boxes = perception::read_detections(boxes_path.string());
   std::vector<OutFrame> frames;
-  for (const io::FrameEntry& e : source.frames())
-    frames.push_back(
-        {e.rgb_timestamp, e.depth_timestamp, absolute(e.rgb_path), absolute(e.depth_path), true});
+  for (const io::FrameEntry& e : source.frames()) {
+    OutFrame& f = frames.emplace_back();
+    f.t_rgb = e.rgb_timestamp;
+    f.t_depth = e.depth_timestamp;
+    f.rgb = absolute(e.rgb_path);
+    f.depth = absolute(e.depth_path);
+    if (const perception::FrameDetections* d = boxes ? boxes->find(e.rgb_timestamp) : nullptr)
+      f.boxes = d->detections;
+  }
   std::optional<Trajectory> groundtruth;
   if (const auto gt = source.groundtruth_path()) groundtruth = io::read_tum_trajectory(*gt);
 
@@ -171,6 +184,7 @@ nlohmann::json write_faulty_sequence(const FaultRequest& request) {
               out / "rgb" / name,
               cv::Mat(size, CV_8UC3, cv::Scalar::all(f.kind == Fault::Kind::kBlack ? 0 : 255)));
           fr.rgb = absolute((out / "rgb" / name).string());
+          fr.boxes.clear();  // a detector finds nothing in a blank image
           break;
         case Fault::Kind::kZeroDepth:
           write_image(out / "depth" / name, cv::Mat(size, CV_16UC1, cv::Scalar(0)));
@@ -181,11 +195,13 @@ nlohmann::json write_faulty_sequence(const FaultRequest& request) {
           write_image(out / "depth" / name, cv::Mat(size, CV_16UC1, cv::Scalar(0)));
           fr.rgb = absolute((out / "rgb" / name).string());
           fr.depth = absolute((out / "depth" / name).string());
+          fr.boxes.clear();
           break;
         case Fault::Kind::kFreeze:
           if (i == f.start) continue;  // the frame that stays on screen
           fr.rgb = frames[f.start].rgb;
           fr.depth = frames[f.start].depth;
+          fr.boxes = frames[f.start].boxes;
           break;
         case Fault::Kind::kTimeJump:
           fr.t_rgb += f.seconds;
@@ -225,6 +241,14 @@ nlohmann::json write_faulty_sequence(const FaultRequest& request) {
   io::write_file_atomic((out / "depth.txt").string(), depth.str());
   io::write_file_atomic((out / "camera.yaml").string(), camera_yaml(config.camera));
   if (groundtruth) io::write_tum_trajectory((out / "groundtruth.txt").string(), *groundtruth);
+  if (boxes) {
+    perception::DetectionsFile copy = *boxes;
+    copy.source += " (mcslam faults)";
+    copy.frames.clear();
+    for (const OutFrame& f : frames)
+      if (f.keep) copy.frames.push_back({f.t_rgb, f.boxes});
+    perception::write_detections((out / "detections.json").string(), copy);
+  }
   report["frames_out"] = kept;
   io::write_file_atomic((out / "faults.json").string(), report.dump(2) + "\n");
   return report;

@@ -11,6 +11,7 @@
 
 #include "mcslam/io/sequence.hpp"
 #include "mcslam/io/trajectory_io.hpp"
+#include "mcslam/perception/detection.hpp"
 #include "mcslam/slam/config.hpp"
 #include "mcslam/synth/sequence.hpp"
 #include "support/cli_runner.hpp"
@@ -53,6 +54,12 @@ TEST(Faults, CopyHasTheFaultsAndRunsWithoutACrash) {
   options.frames = 60;
   options.depth_noise = true;
   synth::write_sequence(dir.file("seq"), options);
+  // One box per frame whose x is the frame's index, so that the copy shows where each went.
+  perception::DetectionsFile boxes = perception::read_detections(dir.file("seq/detections.json"));
+  ASSERT_EQ(boxes.frames.size(), 60u);
+  for (std::size_t i = 0; i < boxes.frames.size(); ++i)
+    boxes.frames[i].detections = {{cv::Rect2f(float(i), 10.f, 20.f, 30.f), 56, "chair", 0.9f}};
+  perception::write_detections(dir.file("seq/detections.json"), boxes);
   FaultRequest request;
   request.sequence_dir = dir.file("seq");
   request.output_dir = dir.file("faulty");
@@ -91,6 +98,28 @@ TEST(Faults, CopyHasTheFaultsAndRunsWithoutACrash) {
   const Trajectory gt_source = io::read_tum_trajectory(dir.file("seq/groundtruth.txt"));
   ASSERT_EQ(gt.size(), gt_source.size());
   EXPECT_DOUBLE_EQ(gt.back().timestamp, gt_source.back().timestamp + 2.0);
+  // The boxes follow their frames: none on a blank frame, the frozen frame's while it is
+  // repeated, shifted with the time jump; one entry per frame of the copy.
+  const perception::DetectionsFile copied =
+      perception::read_detections(dir.file("faulty/detections.json"));
+  ASSERT_EQ(copied.frames.size(), 51u);
+  const auto box_x = [&](double t) -> float {
+    const perception::FrameDetections* f = copied.find(t);
+    if (f == nullptr) {
+      ADD_FAILURE() << "no boxes at " << t;
+      return -2.f;
+    }
+    return f->detections.empty() ? -1.f : f->detections.front().box.x;
+  };
+  EXPECT_EQ(box_x(source.frames()[11].rgb_timestamp), 11.f);
+  EXPECT_EQ(box_x(source.frames()[21].rgb_timestamp), -1.f);  // black
+  EXPECT_EQ(box_x(source.frames()[24].rgb_timestamp), -1.f);  // saturated
+  EXPECT_EQ(box_x(source.frames()[27].rgb_timestamp), 27.f);  // depth only
+  EXPECT_EQ(box_x(source.frames()[33].rgb_timestamp), 30.f);  // frozen on frame 30
+  EXPECT_EQ(box_x(source.frames()[41].rgb_timestamp + 2.0), 41.f);
+  EXPECT_EQ(box_x(source.frames()[46].rgb_timestamp + 2.0), -1.f);  // kidnapped
+  for (std::size_t i = 0; i < copied.frames.size(); ++i)
+    EXPECT_NEAR(copied.frames[i].timestamp, faulty.frames()[i].rgb_timestamp, 1e-6);
   // The copy carries the source's camera.
   EXPECT_EQ(slam::resolve_run_config(request.output_dir, std::nullopt).camera.fx,
             slam::resolve_run_config(request.sequence_dir, std::nullopt).camera.fx);

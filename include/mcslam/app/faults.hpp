@@ -44,7 +44,9 @@ struct FaultRequest {
 /// Writes output_dir as a TUM-layout sequence: rgb.txt, depth.txt (listing new images for the
 /// frames a fault changed, the originals otherwise), groundtruth.txt (shifted like the frames
 /// after a time jump), camera.yaml (the source's camera, so that the copy needs no folder-name
-/// preset) and faults.json (each fault with its frames and time span, for the evaluation).
+/// preset), detections.json when the source has one (the boxes follow their frames: none on a
+/// blank frame, the frozen frame's boxes while it is repeated, shifted after a time jump) and
+/// faults.json (each fault with its frames and time span, for the evaluation).
 /// Returns faults.json's content. Throws InputError for bad input (an unreadable sequence, a
 /// fault outside the sequence's frames, an output folder that cannot be written).
 nlohmann::json write_faulty_sequence(const FaultRequest& request);
