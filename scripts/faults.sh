@@ -18,16 +18,11 @@ while [ $# -gt 0 ]; do
     *) seq="$1"; shift ;;
   esac
 done
+source scripts/common.sh
+require_mcslam faults
 exe=./build/mcslam
-[ -x "$exe" ] || { echo "faults: $exe not found; run scripts/build.sh first" >&2; exit 1; }
 mkdir -p "$out"
-if [ -z "$seq" ]; then
-  seq=../shared/data/tum/rgbd_dataset_freiburg1_rpy
-  if [ ! -f "$seq/rgb.txt" ]; then
-    seq="$out/synthetic_room"
-    [ -f "$seq/rgb.txt" ] || "$exe" synth --output "$seq" --frames 300 --depth-noise -q
-  fi
-fi
+[ -n "$seq" ] || seq=$(default_sequence "$out")
 n=$(grep -vc '^#' "$seq/rgb.txt")
 mid=$((n / 2))
 faults=(none "drop-every:5" "drop-burst:$mid:10" "black:$mid:15" "saturate:$mid:15"

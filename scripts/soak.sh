@@ -22,16 +22,11 @@ while [ $# -gt 0 ]; do
     *) seq="$1"; shift ;;
   esac
 done
+source scripts/common.sh
+require_mcslam soak
 exe=./build/mcslam
-[ -x "$exe" ] || { echo "soak: $exe not found; run scripts/build.sh first" >&2; exit 1; }
 mkdir -p "$out"
-if [ -z "$seq" ]; then
-  seq=../shared/data/tum/rgbd_dataset_freiburg1_rpy
-  if [ ! -f "$seq/rgb.txt" ]; then
-    seq="$out/synthetic_room"
-    [ -f "$seq/rgb.txt" ] || "$exe" synth --output "$seq" --frames 300 --depth-noise -q
-  fi
-fi
+[ -n "$seq" ] || seq=$(default_sequence "$out")
 model_args=()
 if [ -n "$model" ] && [ -f "$model" ]; then model_args=(--model "$model"); fi
 echo "soak: $repeat passes of $seq ${model_args[*]} -> $out/run" >&2
