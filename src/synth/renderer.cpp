@@ -4,7 +4,6 @@
 #include <array>
 #include <cmath>
 #include <limits>
-#include <opencv2/core/utility.hpp>
 
 #include "mcslam/core/error.hpp"
 #include "mcslam/core/parallel.hpp"

@@ -4,7 +4,6 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
-#include <opencv2/core/utility.hpp>
 #include <string>
 
 #include "dynamic.hpp"
