@@ -117,7 +117,11 @@ nlohmann::json objects_json(const slam::FrameResult& r) {
                         {"outliers", o.decision.outliers},
                         {"outlier_ratio", o.decision.outlier_ratio},
                         {"median_distance_px", o.decision.median_distance},
-                        {"decided", o.decision.decided}};
+                        {"decided", o.decision.decided},
+                        {"source", slam::to_string(o.source)},
+                        {"propagated_matches", o.propagated_matches},
+                        {"background_points", o.background_points}};
+    if (o.depth_far > 0.0f) j["depth_band_m"] = {o.depth_near, o.depth_far};
     if (o.constraint.plane >= 0 || o.constraint.points > 0)
       j["constraint"] = {{"constrained", o.constraint.constrained},
                          {"plane", o.constraint.plane},
@@ -337,9 +341,9 @@ nlohmann::json run_frames(const RunRequest& request, const io::RgbdSequence& seq
     objects_file.emplace((out / "objects.json").string());
     objects_file->append("{\"frames\": [\n");
   }
-  std::vector<double> detect_ms, detection_age;
+  std::vector<double> detect_ms, detection_age, propagation_iou, stale_iou;
   std::map<std::string, int> object_states;  // box-frames per state
-  int frames_with_boxes = 0, fresh_frames = 0;
+  int frames_with_boxes = 0, fresh_frames = 0, mover_frames = 0;
   ProgressBar bar(request.progress, total);
 
   StageTable stage_table;
@@ -437,7 +441,14 @@ nlohmann::json run_frames(const RunRequest& request, const io::RgbdSequence& seq
           {"dynamic_lines", count_labels(r.line_labels, slam::FeatureLabel::kDynamic)},
           {"constrained_lines", count_labels(r.line_labels, slam::FeatureLabel::kConstrained)},
           {"constrained_residuals", {r.constrained_point_residuals, r.constrained_line_residuals}},
+          {"mover_regions", r.mover_regions},
+          {"mover_points", r.mover_points},
           {"objects", objects_json(r)}};
+      if (r.propagation_iou >= 0.0) {
+        propagation_iou.push_back(r.propagation_iou);
+        stale_iou.push_back(r.stale_iou);
+      }
+      mover_frames += r.mover_regions > 0 ? 1 : 0;
       objects_file->append((frames_with_boxes > 0 ? ",\n" : "") + frame_objects.dump(1));
       ++frames_with_boxes;
       fresh_frames += r.detections_fresh ? 1 : 0;
@@ -553,6 +564,12 @@ nlohmann::json run_frames(const RunRequest& request, const io::RgbdSequence& seq
     const SampleStats det = compute_stats(detect_ms);
     d["detector_ms"] = {{"median", det.median}, {"p95", det.p95}, {"count", det.count}};
     d["object_frames"] = object_states;  // box-frames per state
+    // Boxes carried forward against the detector's next boxes (see ObjectOutputs).
+    d["propagation"] = {{"enabled", config.options.tracker.dynamics.propagate_boxes},
+                        {"measured", propagation_iou.size()},
+                        {"iou_median", compute_stats(propagation_iou).median},
+                        {"stale_iou_median", compute_stats(stale_iou).median}};
+    d["mover_frames"] = mover_frames;  // frames where motion without a box was found
     summary["dynamics"] = d;
     if (objects_file && frames_with_boxes > 0) {
       objects_file->append("\n]}\n");

@@ -54,6 +54,18 @@ std::optional<std::string> DynamicsOptions::check() const {
   if (!(structural_outside >= 0.0 && structural_outside <= 1.0))
     return "dynamics.structural_outside must be in [0, 1]";
   if (static_frames_to_clear < 1) return "dynamics.static_frames_to_clear must be >= 1";
+  if (moving_class_static_frames < 1) return "dynamics.moving_class_static_frames must be >= 1";
+  if (!(propagation_radius >= 0.0)) return "dynamics.propagation_radius must be >= 0 (pixels)";
+  if (min_propagation_matches < 1) return "dynamics.min_propagation_matches must be >= 1";
+  if (!(propagation_margin >= 0.0)) return "dynamics.propagation_margin must be >= 0 (pixels)";
+  if (!(object_depth_gap > 0.0)) return "dynamics.object_depth_gap must be > 0 (metres)";
+  if (!(mover_displacement > 0.0)) return "dynamics.mover_displacement must be > 0 (metres)";
+  if (!(mover_relative >= 0.0)) return "dynamics.mover_relative must be >= 0";
+  if (!(mover_link_radius > 0.0)) return "dynamics.mover_link_radius must be > 0 (pixels)";
+  if (!(mover_link_depth > 0.0)) return "dynamics.mover_link_depth must be > 0 (metres)";
+  if (mover_min_seeds < 1) return "dynamics.mover_min_seeds must be >= 1";
+  if (!(mover_seed_share > 0.0 && mover_seed_share <= 1.0))
+    return "dynamics.mover_seed_share must be in (0, 1]";
   if (!(constraint_distance > 0.0)) return "dynamics.constraint_distance must be > 0 (metres)";
   if (!(constraint_angle_deg > 0.0)) return "dynamics.constraint_angle_deg must be > 0";
   if (min_constraint_points < 1) return "dynamics.min_constraint_points must be >= 1";
@@ -66,6 +78,11 @@ std::optional<std::string> DynamicsOptions::check() const {
 bool DynamicsOptions::constrainable(const std::string& class_name) const {
   return std::find(constrained_classes.begin(), constrained_classes.end(), class_name) !=
          constrained_classes.end();
+}
+
+bool DynamicsOptions::self_moving(const std::string& class_name) const {
+  return person_prior && std::find(moving_classes.begin(), moving_classes.end(), class_name) !=
+                             moving_classes.end();
 }
 
 double epipolar_distance(const Eigen::Matrix3d& F, const Eigen::Vector2d& p1,
@@ -252,8 +269,9 @@ ConstraintDecision check_moving_constraint(const std::vector<const MotionMatch*>
   return best;
 }
 
-std::vector<int> ObjectTracks::associate(const std::vector<perception::Detection>& boxes,
-                                         bool person_prior) {
+std::vector<int> ObjectTracks::associate(
+    const std::vector<perception::Detection>& boxes,
+    const std::function<bool(const perception::Detection&)>& starts_dynamic) {
   std::vector<int> out(boxes.size(), -1);
   std::vector<bool> used(tracks_.size(), false);
   // Greedy by IoU, best pairs first.
@@ -284,7 +302,7 @@ std::vector<int> ObjectTracks::associate(const std::vector<perception::Detection
       t = tracks_[static_cast<std::size_t>(out[b])];
     } else {
       t.id = next_id_++;
-      if (person_prior && boxes[b].class_name == "person") t.state = ObjectState::kDynamic;
+      if (starts_dynamic && starts_dynamic(boxes[b])) t.state = ObjectState::kDynamic;
     }
     t.detection = boxes[b];
     ++t.frames;

@@ -116,6 +116,9 @@ void LocalMapper::insert_keyframe(const KeyFrameRequest& request) {
     map_.add_tracking_statistics(s.landmark, s.visible, s.found);
   for (const auto& s : request.line_statistics)
     map_.add_line_statistics(s.landmark, s.visible, s.found);
+  // Points tracking saw move (a person the detector missed) leave the map.
+  for (map::PointId p : request.moved_points)
+    if (map_.point(p) != nullptr) map_.erase_point(p);
   map::KeyFrame kf;
   kf.id = request.id;
   kf.frame_id = request.frame.id;

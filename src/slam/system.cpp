@@ -140,12 +140,16 @@ FrameResult System::process(const cv::Mat& rgb, const cv::Mat& depth, double tim
   result.line_inliers = outcome.line_inliers;
   result.plane_inliers = outcome.plane_inliers;
   result.frame_features = frame.features;
-  result.point_labels = std::move(outcome.point_labels);
-  result.line_labels = std::move(outcome.line_labels);
-  result.objects = std::move(outcome.objects);
-  result.constrained_point_residuals = outcome.constrained_point_residuals;
-  result.constrained_line_residuals = outcome.constrained_line_residuals;
-  result.dynamics_threshold = outcome.dynamics_threshold;
+  result.point_labels = std::move(outcome.objects.point_labels);
+  result.line_labels = std::move(outcome.objects.line_labels);
+  result.objects = std::move(outcome.objects.objects);
+  result.constrained_point_residuals = outcome.objects.constrained_point_residuals;
+  result.constrained_line_residuals = outcome.objects.constrained_line_residuals;
+  result.dynamics_threshold = outcome.objects.threshold;
+  result.propagation_iou = outcome.objects.propagation_iou;
+  result.stale_iou = outcome.objects.stale_iou;
+  result.mover_regions = outcome.objects.mover_regions;
+  result.mover_points = outcome.objects.mover_points;
   if (outcome.state == TrackingState::kOk) {
     result.T_w_c = outcome.T_c_w.inverse();
     record.tracked = true;

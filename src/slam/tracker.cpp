@@ -104,25 +104,6 @@ int Tracker::Associations::inlier_planes() const {
       planes.begin(), planes.end(), [](const PlaneMatch& m) { return m.active && !m.outlier; }));
 }
 
-namespace {
-
-/// Background features matched per frame to measure its noise (see adaptive_threshold).
-constexpr std::size_t kBackgroundSample = 150;
-
-/// The label of a feature in the boxes of `mask` (bit b: box b): dynamic when any of them is
-/// dynamic, else constrained when any is constrained, else static.
-FeatureLabel label_for(std::uint64_t mask, const std::vector<ObjectState>& state) {
-  FeatureLabel label = FeatureLabel::kStatic;
-  for (std::size_t b = 0; b < state.size() && b < 64; ++b) {
-    if (!(mask & (std::uint64_t{1} << b))) continue;
-    if (state[b] == ObjectState::kDynamic) return FeatureLabel::kDynamic;
-    if (state[b] == ObjectState::kConstrained) label = FeatureLabel::kConstrained;
-  }
-  return label;
-}
-
-}  // namespace
-
 const char* to_string(TrackingState state) {
   switch (state) {
     case TrackingState::kNotInitialized:
@@ -136,7 +117,7 @@ const char* to_string(TrackingState state) {
 }
 
 Tracker::Tracker(const PinholeCamera& camera, const TrackerOptions& options, const map::Map& map)
-    : camera_(camera), options_(options), map_(map) {}
+    : camera_(camera), options_(options), map_(map), objects_(camera, options.dynamics) {}
 
 TrackingOutcome Tracker::track(const Frame& frame, bool mapper_idle, std::size_t mapper_queue,
                                StageTimes* times) {
@@ -174,20 +155,27 @@ TrackingOutcome Tracker::track(const Frame& frame, bool mapper_idle, std::size_t
   };
   // The first estimate leaves out the features of objects known to move; when that leaves too
   // little (a moving object filling the view), all features go in and the robust loss copes.
-  prepare_objects(frame);
+  {
+    std::optional<SE3> predicted;
+    if (state_ == TrackingState::kOk)
+      if (const auto T_last = last_frame_pose())
+        predicted = velocity_ ? (*velocity_) * (*T_last) : *T_last;
+    objects_.prepare(frame, predicted);
+  }
+  if (times) times->add("object_prepare", watch.elapsed_ms());
+  watch.restart();
   first_estimate();
-  if (!ok && boxes_.any()) {
-    std::fill(boxes_.point_excluded.begin(), boxes_.point_excluded.end(), 0);
-    std::fill(boxes_.line_excluded.begin(), boxes_.line_excluded.end(), 0);
+  if (!ok && objects_.any()) {
+    objects_.include_all();
     assoc.clear();
     first_estimate();
   }
   if (relocalised) last_relocalisation_frame_ = frame.id;
   if (times) times->add("track_frame", watch.elapsed_ms());
 
-  if (ok && boxes_.any()) {
+  if (ok && objects_.any()) {
     watch.restart();
-    classify_objects(frame, T_c_w);
+    objects_.classify(frame, T_c_w);
     if (times) times->add("dynamics", watch.elapsed_ms());
   }
 
@@ -197,6 +185,7 @@ TrackingOutcome Tracker::track(const Frame& frame, bool mapper_idle, std::size_t
     const bool recent_reloc = frame.id < last_relocalisation_frame_ + 2;
     inliers =
         track_local_map(frame, assoc, T_c_w, recent_reloc ? 5.0 : options_.local_map_search_radius);
+    inliers = remove_movers(frame, assoc, T_c_w, inliers);
     const int needed = frame.id < last_relocalisation_frame_ + options_.max_frames_between_keyframes
                            ? options_.min_relocalisation_inliers
                            : options_.min_local_map_inliers;
@@ -208,7 +197,7 @@ TrackingOutcome Tracker::track(const Frame& frame, bool mapper_idle, std::size_t
   if (times) times->add("track_local_map", watch.elapsed_ms());
 
   TrackingOutcome out;
-  report_objects(frame, out);
+  out.objects = objects_.outputs(frame);
   out.relocalised = relocalised && ok;
   out.matches = assoc.active_points();
   out.inliers = assoc.inlier_points(false);
@@ -218,7 +207,7 @@ TrackingOutcome Tracker::track(const Frame& frame, bool mapper_idle, std::size_t
   if (!ok) {
     state_ = TrackingState::kLost;
     velocity_.reset();
-    history_.clear();
+    objects_.forget();
     out.state = state_;
     return out;
   }
@@ -240,9 +229,7 @@ TrackingOutcome Tracker::track(const Frame& frame, bool mapper_idle, std::size_t
   }
   remember_last_frame(frame, assoc, T_c_w, out.reference);
   out.T_c_ref = last_->T_c_ref;
-  history_.push_front(PastFrame{frame, T_c_w});
-  while (history_.size() > static_cast<std::size_t>(options_.dynamics.frame_gap))
-    history_.pop_back();
+  objects_.remember(frame, T_c_w);
   if (times) times->add("keyframe_decision", watch.elapsed_ms());
   return out;
 }
@@ -267,25 +254,18 @@ TrackingOutcome Tracker::initialize(const Frame& frame) {
   out.T_c_w = SE3();
   // Nothing tells yet which object moves: the map starts from the features outside the boxes
   // when they are enough, else from all.
-  prepare_objects(frame);
-  if (boxes_.any()) {
-    int outside = 0;
-    for (std::size_t i = 0; i < frame.features->points.size(); ++i)
-      outside += frame.features->points[i].has_depth() && !boxes_.point_excluded[i] ? 1 : 0;
-    if (outside < options_.min_initial_points / 2) {
-      std::fill(boxes_.point_excluded.begin(), boxes_.point_excluded.end(), 0);
-      std::fill(boxes_.line_excluded.begin(), boxes_.line_excluded.end(), 0);
-    }
-  }
-  report_objects(frame, out);
+  objects_.prepare(frame, std::nullopt);
+  if (objects_.any() && objects_.static_points_with_depth(frame) < options_.min_initial_points / 2)
+    objects_.include_all();
+  out.objects = objects_.outputs(frame);
   out.keyframe = make_keyframe(frame, none, SE3());
   out.reference = out.keyframe->id;
   out.inliers = with_depth;
   out.line_inliers = lines_with_depth;
   remember_last_frame(frame, none, SE3(), out.reference);
   out.T_c_ref = SE3();
-  history_.clear();
-  history_.push_front(PastFrame{frame, SE3()});
+  objects_.forget();
+  objects_.remember(frame, SE3());
   return out;
 }
 
@@ -335,6 +315,7 @@ int Tracker::search_last_frame(const Frame& frame, const SE3& T_c_w, double radi
     auto lock = map_.read_lock();
     for (std::size_t i = 0; i < last_points.size(); ++i) {
       if (last_->landmarks[i] != map::kNoId) {
+        if (moved_set_.count(last_->landmarks[i]) != 0) continue;
         if (const map::MapPoint* mp = map_.point(last_->landmarks[i])) {
           world[i] = mp->p_w;
           continue;
@@ -553,11 +534,8 @@ int Tracker::optimize(const Frame& frame, Associations& assoc, SE3& T_c_w) const
   optim::PoseProblem problem;
   std::vector<std::size_t> point_index, line_index, plane_index;
   const auto& features = *frame.features;
-  const auto excluded = [](const std::vector<std::uint8_t>& mask, std::size_t i) {
-    return i < mask.size() && mask[i] != 0;
-  };
   for (std::size_t i = 0; i < assoc.points.size(); ++i) {
-    if (!assoc.points[i].active || excluded(boxes_.point_excluded, i)) continue;
+    if (!assoc.points[i].active || objects_.point_excluded(i)) continue;
     optim::PoseObservation obs;
     obs.p_w = assoc.points[i].p_w;
     obs.measurement = measurement_of(features.points[i], *features.pyramid, options_.depth_weight);
@@ -565,7 +543,7 @@ int Tracker::optimize(const Frame& frame, Associations& assoc, SE3& T_c_w) const
     point_index.push_back(i);
   }
   for (std::size_t i = 0; i < assoc.lines.size(); ++i) {
-    if (!assoc.lines[i].active || excluded(boxes_.line_excluded, i)) continue;
+    if (!assoc.lines[i].active || objects_.line_excluded(i)) continue;
     optim::PoseLineObservation obs;
     obs.start_w = assoc.lines[i].start_w;
     obs.end_w = assoc.lines[i].end_w;
@@ -583,17 +561,16 @@ int Tracker::optimize(const Frame& frame, Associations& assoc, SE3& T_c_w) const
     plane_index.push_back(i);
   }
   if (problem.points.size() + problem.lines.size() + 3 * problem.planes.size() < 3) return 0;
-  problem.constrained_points = boxes_.constrained_points;
-  problem.constrained_lines = boxes_.constrained_lines;
+  problem.constrained_points = objects_.constrained_points();
+  problem.constrained_lines = objects_.constrained_lines();
   const auto result = optim::optimize_pose(camera_, T_c_w, problem, options_.pose);
   T_c_w = result.T_c_w;
   // Features left out (on moving objects) count as outliers everywhere downstream: no landmark,
   // no statistics, no depth point for the next frame.
   for (std::size_t i = 0; i < assoc.points.size(); ++i)
-    if (assoc.points[i].active && excluded(boxes_.point_excluded, i))
-      assoc.points[i].outlier = true;
+    if (assoc.points[i].active && objects_.point_excluded(i)) assoc.points[i].outlier = true;
   for (std::size_t i = 0; i < assoc.lines.size(); ++i)
-    if (assoc.lines[i].active && excluded(boxes_.line_excluded, i)) assoc.lines[i].outlier = true;
+    if (assoc.lines[i].active && objects_.line_excluded(i)) assoc.lines[i].outlier = true;
   for (std::size_t k = 0; k < point_index.size(); ++k)
     assoc.points[point_index[k]].outlier = !result.inlier[k];
   for (std::size_t k = 0; k < line_index.size(); ++k)
@@ -696,7 +673,7 @@ int Tracker::search_local_points(const Frame& frame, const SE3& T_c_w, double ra
   std::vector<int> candidates;
   int added = 0;
   for (map::PointId id : local_.points) {
-    if (already.count(id) != 0) continue;
+    if (already.count(id) != 0 || moved_set_.count(id) != 0) continue;
     const map::MapPoint* mp = map_.point(id);
     if (mp == nullptr) continue;
     const Eigen::Vector3d p_c = T_c_w * mp->p_w;
@@ -811,6 +788,9 @@ int Tracker::track_local_map(const Frame& frame, Associations& assoc, SE3& T_c_w
         }
       }
     }
+    // Points seen to move stay out until the mapper has removed them.
+    for (auto it = moved_set_.begin(); it != moved_set_.end();)
+      it = map_.point(*it) == nullptr ? moved_set_.erase(it) : std::next(it);
     update_local_map(assoc, T_c_w);
     search_local_points(frame, T_c_w, radius_factor, assoc.points);
     search_local_lines(frame, T_c_w, assoc.lines);
@@ -830,6 +810,23 @@ int Tracker::track_local_map(const Frame& frame, Associations& assoc, SE3& T_c_w
       ++stat.found;
     }
   return inliers;
+}
+
+int Tracker::remove_movers(const Frame& frame, Associations& assoc, SE3& T_c_w, int inliers) {
+  if (!options_.dynamics.find_movers || !frame.objects) return inliers;
+  // Every matched feature that took part: where its map point (or last-frame point) should be.
+  std::vector<MotionEvidence> evidence;
+  for (std::size_t i = 0; i < assoc.points.size(); ++i) {
+    const Match& m = assoc.points[i];
+    if (!m.active || objects_.point_excluded(i)) continue;
+    evidence.push_back({static_cast<int>(i), T_c_w * m.p_w, m.landmark});
+  }
+  const MoverResult movers = objects_.find_movers(frame, T_c_w, evidence);
+  if (!movers.any) return inliers;
+  for (map::PointId id : movers.moved_landmarks)
+    if (moved_set_.insert(id).second) moved_points_.push_back(id);
+  // The movers' features leave the optimisation (optimize() marks them as outliers).
+  return optimize(frame, assoc, T_c_w);
 }
 
 bool Tracker::relocalise(const Frame& frame, Associations& assoc, SE3& T_c_w) {
@@ -1003,10 +1000,12 @@ KeyFrameRequest Tracker::make_keyframe(const Frame& frame, const Associations& a
   const auto any_set = [](const std::vector<std::uint8_t>& v) {
     return std::any_of(v.begin(), v.end(), [](std::uint8_t x) { return x != 0; });
   };
-  if (any_set(boxes_.point_excluded) || any_set(boxes_.line_excluded)) {
-    request.excluded_points = boxes_.point_excluded;
-    request.excluded_lines = boxes_.line_excluded;
+  if (any_set(objects_.point_exclusions()) || any_set(objects_.line_exclusions())) {
+    request.excluded_points = objects_.point_exclusions();
+    request.excluded_lines = objects_.line_exclusions();
   }
+  request.moved_points = std::move(moved_points_);
+  moved_points_.clear();
   request.statistics = sorted(statistics_);
   request.line_statistics = sorted(line_statistics_);
   statistics_.clear();
@@ -1044,7 +1043,7 @@ void Tracker::remember_last_frame(const Frame& frame, const Associations& assoc,
       last.landmarks[i] = m.landmark;
       continue;
     }
-    const bool moving = i < boxes_.point_excluded.size() && boxes_.point_excluded[i] != 0;
+    const bool moving = objects_.point_excluded(i);
     if (f.has_depth() && !moving) by_depth.emplace_back(f.depth, i);
   }
   std::sort(by_depth.begin(), by_depth.end());
@@ -1062,463 +1061,10 @@ void Tracker::remember_last_frame(const Frame& frame, const Associations& assoc,
   for (std::size_t i = 0; i < n_lines; ++i) {
     const LineMatch& m = assoc.lines[i];
     if (m.active && !m.outlier && m.landmark != map::kNoId) last.line_landmarks[i] = m.landmark;
-    const bool moving = i < boxes_.line_excluded.size() && boxes_.line_excluded[i] != 0;
+    const bool moving = objects_.line_excluded(i);
     last.line_has_depth[i] = frame.features->lines[i].has_depth && !moving;
   }
   last_ = std::move(last);
-}
-
-void Tracker::prepare_objects(const Frame& frame) {
-  const auto& features = *frame.features;
-  boxes_ = FrameBoxes{};
-  boxes_.point_excluded.assign(features.points.size(), 0);
-  boxes_.line_excluded.assign(features.lines.size(), 0);
-  if (!options_.dynamics.enabled || !frame.objects || frame.objects->boxes.empty()) {
-    tracks_.clear();
-    return;
-  }
-  const DynamicsOptions& opt = options_.dynamics;
-  // At most 64 boxes (one bit each): the highest-scoring ones.
-  std::vector<perception::Detection> boxes = frame.objects->boxes;
-  std::stable_sort(boxes.begin(), boxes.end(),
-                   [](const auto& a, const auto& b) { return a.score > b.score; });
-  if (boxes.size() > 64) boxes.resize(64);
-  // Boxes of an earlier frame are grown a little per frame of age: objects move meanwhile.
-  if (!frame.objects->fresh) {
-    const float grow = std::min(0.3f, 0.05f * static_cast<float>(frame.objects->age));
-    for (auto& d : boxes) {
-      const float dx = grow * d.box.width / 2, dy = grow * d.box.height / 2;
-      d.box = cv::Rect2f(d.box.x - dx, d.box.y - dy, d.box.width + 2 * dx, d.box.height + 2 * dy);
-    }
-  }
-  boxes_.boxes = boxes;
-  boxes_.tracks = tracks_.associate(boxes, opt.person_prior);
-
-  // Image extent of each frame plane, to tell structural planes (floor, wall) from an object's.
-  std::vector<cv::Rect2f> plane_extent;
-  for (const auto& plane : features.planes) {
-    float x0 = 1e9f, y0 = 1e9f, x1 = -1e9f, y1 = -1e9f;
-    for (const auto& h : plane.hull) {
-      if (h.z() <= 1e-3) continue;
-      const Eigen::Vector2d uv = camera_.project(h);
-      x0 = std::min(x0, static_cast<float>(uv.x()));
-      y0 = std::min(y0, static_cast<float>(uv.y()));
-      x1 = std::max(x1, static_cast<float>(uv.x()));
-      y1 = std::max(y1, static_cast<float>(uv.y()));
-    }
-    const cv::Rect2f r = x1 > x0 && y1 > y0 ? cv::Rect2f(x0, y0, x1 - x0, y1 - y0) : cv::Rect2f();
-    plane_extent.push_back(r & cv::Rect2f(0.f, 0.f, static_cast<float>(camera_.width),
-                                          static_cast<float>(camera_.height)));
-  }
-  const auto structural = [&](std::size_t box, int plane) {
-    if (plane < 0 || static_cast<std::size_t>(plane) >= plane_extent.size()) return false;
-    const cv::Rect2f& e = plane_extent[static_cast<std::size_t>(plane)];
-    const double area = e.area();
-    if (area <= 0.0) return false;
-    const double inside = (e & boxes[box].box).area();
-    return 1.0 - inside / area >= opt.structural_outside;
-  };
-  const auto contains = [](const cv::Rect2f& r, const Eigen::Vector2f& p) {
-    return p.x() >= r.x && p.y() >= r.y && p.x() < r.x + r.width && p.y() < r.y + r.height;
-  };
-
-  boxes_.point_boxes.assign(features.points.size(), 0);
-  for (std::size_t i = 0; i < features.points.size(); ++i) {
-    const auto& f = features.points[i];
-    for (std::size_t b = 0; b < boxes.size(); ++b) {
-      if (!contains(boxes[b].box, f.keypoint.uv)) continue;
-      if (structural(b, f.plane)) continue;  // the floor or wall seen through the box
-      boxes_.point_boxes[i] |= std::uint64_t{1} << b;
-    }
-  }
-  // A feature inside overlapping boxes (a person walking in front of a cupboard) belongs to the
-  // object at its depth: the box whose median depth is closest to the feature's.
-  // The box's depth comes from the features in it alone when it has some: the cupboard's depth
-  // from the part of it the person does not hide.
-  std::vector<std::vector<float>> box_depths(boxes.size()), exclusive_depths(boxes.size());
-  for (std::size_t i = 0; i < features.points.size(); ++i) {
-    const std::uint64_t mask = boxes_.point_boxes[i];
-    if (!features.points[i].has_depth()) continue;
-    for (std::size_t b = 0; b < boxes.size(); ++b) {
-      if (!((mask >> b) & 1U)) continue;
-      box_depths[b].push_back(features.points[i].depth);
-      if (mask == std::uint64_t{1} << b) exclusive_depths[b].push_back(features.points[i].depth);
-    }
-  }
-  for (std::size_t b = 0; b < boxes.size(); ++b)
-    if (exclusive_depths[b].size() >= 5) box_depths[b] = std::move(exclusive_depths[b]);
-  std::vector<float> box_depth(boxes.size(), -1.0f);
-  for (std::size_t b = 0; b < boxes.size(); ++b) {
-    auto& d = box_depths[b];
-    if (d.empty()) continue;
-    std::nth_element(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(d.size() / 2), d.end());
-    box_depth[b] = d[d.size() / 2];
-  }
-  boxes_.depth = box_depth;
-  const auto nearest_box = [&](std::uint64_t mask, double depth) {
-    if (depth <= 0.0 || (mask & (mask - 1)) == 0) return mask;  // no depth, or a single box
-    std::uint64_t best = mask;
-    double best_gap = std::numeric_limits<double>::infinity();
-    for (std::size_t b = 0; b < boxes.size(); ++b) {
-      if (!((mask >> b) & 1U) || box_depth[b] < 0.0f) continue;
-      const double gap = std::abs(box_depth[b] - depth);
-      if (gap < best_gap) {
-        best_gap = gap;
-        best = std::uint64_t{1} << b;
-      }
-    }
-    return best;
-  };
-  for (std::size_t i = 0; i < features.points.size(); ++i)
-    boxes_.point_boxes[i] = nearest_box(boxes_.point_boxes[i], features.points[i].depth);
-
-  boxes_.line_boxes.assign(features.lines.size(), 0);
-  for (std::size_t i = 0; i < features.lines.size(); ++i) {
-    const auto& l = features.lines[i];
-    for (std::size_t b = 0; b < boxes.size(); ++b) {
-      if (!contains(boxes[b].box, l.midpoint())) continue;
-      bool on_structure = false;
-      if (l.has_depth)
-        for (std::size_t k = 0; k < features.planes.size() && !on_structure; ++k)
-          on_structure = structural(b, static_cast<int>(k)) &&
-                         std::abs(features.planes[k].distance(l.start_c)) < opt.plane_distance &&
-                         std::abs(features.planes[k].distance(l.end_c)) < opt.plane_distance;
-      if (!on_structure) boxes_.line_boxes[i] |= std::uint64_t{1} << b;
-    }
-    boxes_.line_boxes[i] =
-        nearest_box(boxes_.line_boxes[i], l.has_depth ? 0.5 * (l.start_c.z() + l.end_c.z()) : 0.0);
-  }
-  // The first estimate leaves out the features of objects known to move (from earlier frames,
-  // or a person just seen); those of objects known static take part, which keeps large static
-  // boxes (a desk, a monitor) from starving it. An object that starts moving now is a minority
-  // the robust loss rejects, and Algorithm 1 then takes it out of the final estimate.
-  std::vector<ObjectState> state(boxes.size());
-  for (std::size_t b = 0; b < boxes.size(); ++b)
-    state[b] = tracks_.tracks()[static_cast<std::size_t>(boxes_.tracks[b])].state;
-  for (std::size_t i = 0; i < features.points.size(); ++i)
-    boxes_.point_excluded[i] = label_for(boxes_.point_boxes[i], state) != FeatureLabel::kStatic;
-  for (std::size_t i = 0; i < features.lines.size(); ++i)
-    boxes_.line_excluded[i] = label_for(boxes_.line_boxes[i], state) != FeatureLabel::kStatic;
-}
-
-std::vector<MotionMatch> Tracker::match_to_reference(const Frame& frame, const PastFrame& ref,
-                                                     const SE3& T_cur_ref) const {
-  const DynamicsOptions& opt = options_.dynamics;
-  const auto& cur = *frame.features;
-  const auto& old = *ref.frame.features;
-  const auto& pyramid = *cur.pyramid;
-  const SE3 T_ref_cur = T_cur_ref.inverse();
-  // Where a current pixel would be in the reference image if it were static.
-  const auto predict = [&](const Eigen::Vector2d& uv,
-                           double depth) -> std::optional<Eigen::Vector2d> {
-    const Eigen::Vector3d p = depth > 0.0 ? T_ref_cur * camera_.unproject(uv, depth)
-                                          : T_ref_cur.rotation() * camera_.unproject(uv, 1.0);
-    if (p.z() <= 1e-6) return std::nullopt;
-    return camera_.project(p);
-  };
-  std::vector<MotionMatch> out;
-  // Points: best descriptor within the window, with a ratio test; one current feature per
-  // reference feature.
-  std::vector<int> candidates;
-  std::unordered_map<int, std::pair<int, std::size_t>> taken;  // ref index -> (distance, slot)
-  std::vector<std::pair<std::size_t, int>> point_pairs;        // (current, reference)
-  // A sample of the background (features outside every box) is matched too: it tells how far
-  // static features land from the camera-motion prediction in this frame.
-  std::size_t background = 0;
-  for (std::size_t i = 0; i < cur.points.size(); ++i) background += boxes_.point_boxes[i] == 0;
-  const std::size_t stride = std::max<std::size_t>(1, background / kBackgroundSample);
-  std::size_t background_seen = 0;
-  for (std::size_t i = 0; i < cur.points.size(); ++i) {
-    if (boxes_.point_boxes[i] == 0 && background_seen++ % stride != 0) continue;
-    const auto& f = cur.points[i];
-    const auto at = predict(f.keypoint.uv.cast<double>(), f.has_depth() ? f.depth : 0.0);
-    if (!at) continue;
-    const int level = f.keypoint.level;
-    const double r = opt.match_radius * pyramid.scale[static_cast<std::size_t>(level)];
-    old.grid.query(static_cast<float>(at->x()), static_cast<float>(at->y()), static_cast<float>(r),
-                   std::max(0, level - 1), level + 1, candidates);
-    int best = 256, second = 256, best_idx = -1;
-    for (int j : candidates) {
-      const int d = features::hamming_distance(f.descriptor,
-                                               old.points[static_cast<std::size_t>(j)].descriptor);
-      if (d < best) {
-        second = best;
-        best = d;
-        best_idx = j;
-      } else if (d < second) {
-        second = d;
-      }
-    }
-    if (best_idx < 0 || best > opt.descriptor_distance || best > 0.8 * second) continue;
-    const auto it = taken.find(best_idx);
-    if (it != taken.end()) {
-      if (it->second.first <= best) continue;
-      point_pairs[it->second.second].second = -1;  // the earlier claim loses
-    }
-    taken[best_idx] = {best, point_pairs.size()};
-    point_pairs.emplace_back(i, best_idx);
-  }
-  for (const auto& [i, j] : point_pairs) {
-    if (j < 0) continue;
-    const auto& f = cur.points[i];
-    const auto& g = old.points[static_cast<std::size_t>(j)];
-    MotionMatch m;
-    m.feature = static_cast<int>(i);
-    m.ref_uv[0] = g.keypoint.uv.cast<double>();
-    m.cur_uv[0] = f.keypoint.uv.cast<double>();
-    if (g.has_depth()) m.ref_c[0] = camera_.unproject(m.ref_uv[0], g.depth);
-    if (f.has_depth()) m.cur_c[0] = camera_.unproject(m.cur_uv[0], f.depth);
-    m.scale = pyramid.scale[static_cast<std::size_t>(f.keypoint.level)];
-    if (boxes_.point_boxes[i] == 0) out.push_back(m);  // background: box -1
-    for (std::size_t b = 0; b < boxes_.boxes.size(); ++b)
-      if (boxes_.point_boxes[i] & (std::uint64_t{1} << b)) {
-        m.box = static_cast<int>(b);
-        out.push_back(m);
-      }
-  }
-  // Lines: midpoint within the window, similar direction, best LBD distance.
-  const double max_angle = std::cos(20.0 * M_PI / 180.0);
-  for (std::size_t i = 0; i < cur.lines.size(); ++i) {
-    if (boxes_.line_boxes[i] == 0) continue;
-    const auto& l = cur.lines[i];
-    const Eigen::Vector3d mid_c = 0.5 * (l.start_c + l.end_c);
-    const auto at = l.has_depth ? predict(camera_.project(mid_c), mid_c.z())
-                                : predict(l.midpoint().cast<double>(), 0.0);
-    if (!at) continue;
-    const Eigen::Vector2f dir = (l.end - l.start).normalized();
-    int best = 256, best_idx = -1;
-    for (std::size_t j = 0; j < old.lines.size(); ++j) {
-      const auto& o = old.lines[j];
-      if ((o.midpoint().cast<double>() - *at).norm() > 1.5 * opt.match_radius) continue;
-      const Eigen::Vector2f odir = (o.end - o.start).normalized();
-      if (std::abs(dir.dot(odir)) < max_angle) continue;
-      const int d = features::hamming_distance(l.descriptor, o.descriptor);
-      if (d < best) {
-        best = d;
-        best_idx = static_cast<int>(j);
-      }
-    }
-    if (best_idx < 0 || best > opt.line_descriptor_distance) continue;
-    const auto& o = old.lines[static_cast<std::size_t>(best_idx)];
-    const bool flip = dir.dot((o.end - o.start).normalized()) < 0.0f;
-    MotionMatch m;
-    m.line = true;
-    m.feature = static_cast<int>(i);
-    m.ref_uv[0] = (flip ? o.end : o.start).cast<double>();
-    m.ref_uv[1] = (flip ? o.start : o.end).cast<double>();
-    m.cur_uv[0] = l.start.cast<double>();
-    m.cur_uv[1] = l.end.cast<double>();
-    if (o.has_depth) {
-      m.ref_c[0] = flip ? o.end_c : o.start_c;
-      m.ref_c[1] = flip ? o.start_c : o.end_c;
-    }
-    if (l.has_depth) {
-      m.cur_c[0] = l.start_c;
-      m.cur_c[1] = l.end_c;
-    }
-    m.cur_line = l.coefficients();
-    for (std::size_t b = 0; b < boxes_.boxes.size(); ++b)
-      if (boxes_.line_boxes[i] & (std::uint64_t{1} << b)) {
-        m.box = static_cast<int>(b);
-        out.push_back(m);
-      }
-  }
-  return out;
-}
-
-void Tracker::classify_objects(const Frame& frame, const SE3& T_c_w) {
-  const DynamicsOptions& opt = options_.dynamics;
-  const std::size_t n_boxes = boxes_.boxes.size();
-  boxes_.decisions.assign(n_boxes, ObjectDecision{});
-  boxes_.constraints.assign(n_boxes, ConstraintDecision{});
-  std::vector<MotionMatch> matches;
-  // The reference: dynamics.frame_gap tracked frames back, or the oldest one kept.
-  const PastFrame* reference =
-      history_.empty()
-          ? nullptr
-          : &history_[std::min(history_.size(), static_cast<std::size_t>(opt.frame_gap)) - 1];
-  if (reference) {
-    const PastFrame& ref = *reference;
-    const SE3 T_cur_ref = T_c_w * ref.T_c_w.inverse();
-    matches = match_to_reference(frame, ref, T_cur_ref);
-    DynamicsOptions frame_opt = opt;
-    frame_opt.epipolar_threshold = adaptive_threshold(matches, T_cur_ref);
-    boxes_.threshold = frame_opt.epipolar_threshold;
-    boxes_.decisions =
-        detect_dynamic_objects(static_cast<int>(n_boxes), matches, camera_, T_cur_ref, frame_opt);
-    // A box with too few matches to that frame (an object that just came into view) is tried
-    // against the last frame.
-    if (&ref != &history_.front()) {
-      bool undecided = false;
-      for (const auto& d : boxes_.decisions) undecided = undecided || !d.decided;
-      if (undecided) {
-        const SE3 T_cur_last = T_c_w * history_.front().T_c_w.inverse();
-        const auto recent = match_to_reference(frame, history_.front(), T_cur_last);
-        DynamicsOptions last_opt = opt;
-        last_opt.epipolar_threshold = adaptive_threshold(recent, T_cur_last);
-        const auto retry = detect_dynamic_objects(static_cast<int>(n_boxes), recent, camera_,
-                                                  T_cur_last, last_opt);
-        for (std::size_t b = 0; b < n_boxes; ++b)
-          if (!boxes_.decisions[b].decided && retry[b].decided) boxes_.decisions[b] = retry[b];
-      }
-    }
-    // An object seen through a moving one (a cupboard behind a walking person) is not judged by
-    // the features it shares with it: when most of a box's matches lie inside another box found
-    // dynamic, the box gets no verdict this frame.
-    std::vector<bool> moving(n_boxes);
-    for (std::size_t b = 0; b < n_boxes; ++b)
-      moving[b] = boxes_.decisions[b].dynamic ||
-                  tracks_.tracks()[static_cast<std::size_t>(boxes_.tracks[b])].state !=
-                      ObjectState::kStatic;
-    const auto in_front = [&](std::size_t c, std::size_t b) {
-      return boxes_.depth[c] > 0.0f && boxes_.depth[b] > 0.0f && boxes_.depth[c] < boxes_.depth[b];
-    };
-    for (std::size_t b = 0; b < n_boxes; ++b) {
-      if (!boxes_.decisions[b].dynamic) continue;
-      int total = 0, shared = 0;
-      for (const MotionMatch& m : matches) {
-        if (m.box != static_cast<int>(b)) continue;
-        ++total;
-        const cv::Point2f p(static_cast<float>(m.cur_uv[0].x()),
-                            static_cast<float>(m.cur_uv[0].y()));
-        for (std::size_t c = 0; c < n_boxes; ++c)
-          if (c != b && moving[c] && in_front(c, b) && boxes_.boxes[c].box.contains(p)) {
-            ++shared;
-            break;
-          }
-      }
-      if (2 * shared > total) boxes_.decisions[b].decided = boxes_.decisions[b].dynamic = false;
-    }
-    for (std::size_t b = 0; b < n_boxes; ++b) {
-      boxes_.decisions[b].box = static_cast<int>(b);
-      tracks_.update(boxes_.tracks[b], boxes_.decisions[b], opt.static_frames_to_clear);
-    }
-    // Algorithm 2 for moving objects of the classes that can only slide.
-    const auto& planes = frame.features->planes;
-    const SE3 T_w_c = T_c_w.inverse();
-    std::vector<Eigen::Vector4d> planes_w;
-    for (const auto& p : planes) {
-      const Eigen::Vector3d n_w = T_w_c.rotation() * p.normal;
-      planes_w.emplace_back(n_w.x(), n_w.y(), n_w.z(), p.d + p.normal.dot(T_c_w.translation()));
-    }
-    for (std::size_t b = 0; b < n_boxes; ++b) {
-      const int t = boxes_.tracks[b];
-      if (tracks_.tracks()[static_cast<std::size_t>(t)].state == ObjectState::kStatic) continue;
-      if (!opt.constraints || !opt.constrainable(boxes_.boxes[b].class_name)) {
-        tracks_.set_constrained(t, false, -1);
-        continue;
-      }
-      std::vector<const MotionMatch*> object;
-      for (const MotionMatch& m : matches)
-        if (m.box == static_cast<int>(b)) object.push_back(&m);
-      // Only planes that reach beyond the box can hold the object (the floor, not its seat).
-      std::vector<Eigen::Vector4d> candidates;
-      std::vector<int> index;
-      for (std::size_t k = 0; k < planes.size(); ++k) {
-        bool inside_only = true;
-        for (const auto& h : planes[k].hull) {
-          if (h.z() <= 1e-3) continue;
-          const Eigen::Vector2d uv = camera_.project(h);
-          if (!boxes_.boxes[b].box.contains(
-                  cv::Point2f(static_cast<float>(uv.x()), static_cast<float>(uv.y()))))
-            inside_only = false;
-        }
-        if (inside_only) continue;
-        candidates.push_back(planes_w[k]);
-        index.push_back(static_cast<int>(k));
-      }
-      ConstraintDecision c =
-          check_moving_constraint(object, candidates, ref.T_c_w.inverse(), T_w_c, opt);
-      if (c.plane >= 0) c.plane = index[static_cast<std::size_t>(c.plane)];
-      boxes_.constraints[b] = c;
-      tracks_.set_constrained(t, c.constrained, c.plane);
-    }
-  }
-  // Labels: a feature in a dynamic box is dynamic, else in a constrained box constrained.
-  std::vector<ObjectState> state(n_boxes);
-  for (std::size_t b = 0; b < n_boxes; ++b)
-    state[b] = tracks_.tracks()[static_cast<std::size_t>(boxes_.tracks[b])].state;
-  const auto label_of = [&](std::uint64_t mask) { return label_for(mask, state); };
-  for (std::size_t i = 0; i < boxes_.point_boxes.size(); ++i)
-    boxes_.point_excluded[i] = label_of(boxes_.point_boxes[i]) != FeatureLabel::kStatic ? 1 : 0;
-  for (std::size_t i = 0; i < boxes_.line_boxes.size(); ++i)
-    boxes_.line_excluded[i] = label_of(boxes_.line_boxes[i]) != FeatureLabel::kStatic ? 1 : 0;
-  // Residuals (9) and (10) from the matched features of constrained objects.
-  if (!reference) return;
-  const SE3 T_w_ref = reference->T_c_w.inverse();
-  const SE3 T_w_c = T_c_w.inverse();
-  for (const MotionMatch& m : matches) {
-    if (m.box < 0) continue;  // background
-    const auto b = static_cast<std::size_t>(m.box);
-    if (state[b] != ObjectState::kConstrained) continue;
-    const std::uint64_t mask = m.line ? boxes_.line_boxes[static_cast<std::size_t>(m.feature)]
-                                      : boxes_.point_boxes[static_cast<std::size_t>(m.feature)];
-    if (label_of(mask) != FeatureLabel::kConstrained) continue;  // also in a dynamic box
-    const int plane = boxes_.constraints[b].plane;
-    if (plane < 0) continue;
-    const Eigen::Vector3d n_w =
-        T_w_c.rotation() * frame.features->planes[static_cast<std::size_t>(plane)].normal;
-    if (!m.line) {
-      if (!m.ref_c[0] || !m.cur_c[0]) continue;
-      optim::ConstrainedPointMeasurement c;
-      c.p_last_w = T_w_ref * (*m.ref_c[0]);
-      c.p_c = *m.cur_c[0];
-      c.n_w = n_w;
-      c.information = 1.0 / (opt.constraint_point_sigma * opt.constraint_point_sigma);
-      boxes_.constrained_points.push_back(c);
-    } else {
-      if (!m.ref_c[0] || !m.ref_c[1] || !m.cur_c[0] || !m.cur_c[1]) continue;
-      optim::ConstrainedLineMeasurement c;
-      c.s_last_w = T_w_ref.rotation() * (*m.ref_c[1] - *m.ref_c[0]);
-      c.s_c = *m.cur_c[1] - *m.cur_c[0];
-      c.n_w = n_w;
-      c.information = 1.0 / (opt.constraint_line_sigma * opt.constraint_line_sigma);
-      boxes_.constrained_lines.push_back(c);
-    }
-  }
-}
-
-double Tracker::adaptive_threshold(const std::vector<MotionMatch>& matches,
-                                   const SE3& T_cur_ref) const {
-  std::vector<double> distances;
-  for (const MotionMatch& m : matches)
-    if (m.box < 0)
-      if (const auto d = motion_distance(camera_, T_cur_ref, m, 0))
-        distances.push_back(*d / m.scale);
-  const double floor = options_.dynamics.epipolar_threshold;
-  if (distances.size() < 20) return floor;
-  const auto mid = distances.begin() + static_cast<std::ptrdiff_t>(distances.size() / 2);
-  std::nth_element(distances.begin(), mid, distances.end());
-  // For 2D Gaussian residuals 3 x the median is about the 99.5th percentile.
-  return std::max(floor, options_.dynamics.background_factor * (*mid));
-}
-
-void Tracker::report_objects(const Frame& frame, TrackingOutcome& out) const {
-  const auto& features = *frame.features;
-  out.point_labels.assign(features.points.size(), FeatureLabel::kStatic);
-  out.line_labels.assign(features.lines.size(), FeatureLabel::kStatic);
-  out.objects_fresh = frame.objects ? frame.objects->fresh : true;
-  out.dynamics_threshold = boxes_.threshold;
-  if (!boxes_.any()) return;
-  std::vector<ObjectState> state(boxes_.boxes.size());
-  for (std::size_t b = 0; b < boxes_.boxes.size(); ++b) {
-    const auto& track = tracks_.tracks()[static_cast<std::size_t>(boxes_.tracks[b])];
-    state[b] = track.state;
-    ObjectReport r;
-    r.detection = boxes_.boxes[b];
-    r.track_id = track.id;
-    r.state = track.state;
-    if (b < boxes_.decisions.size()) r.decision = boxes_.decisions[b];
-    if (b < boxes_.constraints.size()) r.constraint = boxes_.constraints[b];
-    out.objects.push_back(r);
-  }
-  const auto label_of = [&](std::uint64_t mask) { return label_for(mask, state); };
-  for (std::size_t i = 0; i < boxes_.point_boxes.size(); ++i)
-    out.point_labels[i] = label_of(boxes_.point_boxes[i]);
-  for (std::size_t i = 0; i < boxes_.line_boxes.size(); ++i)
-    out.line_labels[i] = label_of(boxes_.line_boxes[i]);
-  out.constrained_point_residuals = static_cast<int>(boxes_.constrained_points.size());
-  out.constrained_line_residuals = static_cast<int>(boxes_.constrained_lines.size());
 }
 
 }  // namespace mcslam::slam

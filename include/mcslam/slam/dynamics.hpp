@@ -38,6 +38,7 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -86,12 +87,62 @@ struct DynamicsOptions {
   /// A frame plane is structural for a box when at least this fraction of its image extent lies
   /// outside the box (a chair's seat is the chair's; the floor under it is not).
   double structural_outside = 0.5;
-  /// A newly seen person is taken as dynamic until this many frames judge it static (people
-  /// who walk into view are moving far more often than not, and an object that just appeared has
-  /// no matches to judge it by yet). Off: every new object starts static.
+  /// The class prior: objects of `moving_classes` (things that move by themselves: people,
+  /// animals) are dynamic whenever detected, whatever Algorithm 1 says of one frame, until they
+  /// have been judged still for `moving_class_static_frames` frames in a row with the strict
+  /// epsilon_d (a person sitting still). An object that just appeared has no matches to judge it
+  /// by, and in a crowd the adaptive epsilon_d is raised by the movers the detector misses, so
+  /// one frame's "static" is no evidence for a person. Off: every object starts static and is
+  /// judged by Algorithms 1 and 2 alone. (The key's name predates the class list.)
   bool person_prior = true;
-  /// Hysteresis: a dynamic object becomes static again after this many frames judged static.
+  std::vector<std::string> moving_classes = {"person", "bird", "cat", "dog"};
+  /// 30 frames, one second at 30 Hz: longer than a walking gait cycle (about 1 s), so a person
+  /// walking slowly is never judged still throughout it.
+  int moving_class_static_frames = 30;
+  /// Hysteresis for other classes: a dynamic object becomes static again after this many frames
+  /// judged static.
   int static_frames_to_clear = 5;
+
+  // --- boxes for the frame being tracked ---
+  /// Boxes the detector computed on an earlier frame are carried to the frame being tracked by
+  /// the image motion of their own features (median displacement of the features in the
+  /// object's depth band, matched by descriptor). Off: they are only grown (5% a frame of age).
+  bool propagate_boxes = true;
+  /// Search radius for those matches: this many pixels per frame of age around the static
+  /// prediction, plus match_radius. 30 px a frame is a person crossing the view at 1.5 m/s
+  /// 1 m from the camera (fx 540, 30 Hz).
+  double propagation_radius = 30.0;
+  /// Matches needed to move a box by its features; fewer: the box moves with the camera only.
+  int min_propagation_matches = 4;
+  /// Margin (pixels per frame of age) added around a carried box for what its motion misses.
+  double propagation_margin = 3.0;
+
+  // --- background inside boxes ---
+  /// A box holds background behind the object: features farther than the object's own depth
+  /// band are the background's and stay static. The box's feature depths are split into
+  /// clusters where sorted depths jump by more than `object_depth_gap` metres (a body's surface
+  /// is continuous; Kinect-class depth noise is 1-3 cm at 2-4 m); the object is the largest
+  /// cluster, and only clusters behind it are freed (whatever is in front of it, an occluder or
+  /// the object itself, stays the object's).
+  bool separate_background = true;
+  double object_depth_gap = 0.3;
+
+  // --- movers without a box ---
+  /// Features whose matched map point (or last-frame point), moved by the estimated pose, lands
+  /// farther than mover_displacement + mover_relative * depth metres from where the depth camera
+  /// sees them are seeds of motion. 5 cm + 3 % of the depth is well above Kinect-class depth
+  /// noise (about 1.5 % at 4 m) and the pose's error; a walking person moves 5 cm in 1-2 frames.
+  bool find_movers = true;
+  double mover_displacement = 0.05;
+  double mover_relative = 0.03;
+  /// Seeds and features are linked when closer than mover_link_radius pixels in the image and
+  /// mover_link_depth metres in depth; features on a structural plane never link (a person's
+  /// feet touch the floor). A region needs mover_min_seeds seeds, and at least mover_seed_share
+  /// of its features with evidence must be seeds (a static region has a few outliers too).
+  double mover_link_radius = 40.0;
+  double mover_link_depth = 0.15;
+  int mover_min_seeds = 8;
+  double mover_seed_share = 0.5;
 
   // --- Algorithm 2 ---
   bool constraints = true;
@@ -111,6 +162,8 @@ struct DynamicsOptions {
 
   std::optional<std::string> check() const;
   bool constrainable(const std::string& class_name) const;
+  /// Whether the class prior holds for this class (person_prior and the class in moving_classes).
+  bool self_moving(const std::string& class_name) const;
 };
 
 /// One feature of the current frame matched to the earlier (reference) frame. A point is one
@@ -193,12 +246,13 @@ class ObjectTracks {
   };
 
   /// Matches this frame's boxes to the tracks (same class, best IoU >= 0.3); unmatched boxes
-  /// start new tracks (dynamic for a "person" with `person_prior`, else static); tracks not seen
-  /// are dropped. Returns the track index of each box.
-  std::vector<int> associate(const std::vector<perception::Detection>& boxes,
-                             bool person_prior = false);
+  /// start new tracks, dynamic when `starts_dynamic(box)` (the class prior), else static; tracks
+  /// not seen are dropped. Returns the track index of each box.
+  std::vector<int> associate(
+      const std::vector<perception::Detection>& boxes,
+      const std::function<bool(const perception::Detection&)>& starts_dynamic = {});
   /// Applies a decision: evidence of motion makes the track dynamic at once; static evidence
-  /// clears it after `static_frames_to_clear` frames; no evidence keeps the state.
+  /// clears it after `static_frames_to_clear` frames in a row; no evidence keeps the state.
   void update(int track, const ObjectDecision& decision, int static_frames_to_clear);
   void set_constrained(int track, bool constrained, int plane);
   const std::vector<Track>& tracks() const { return tracks_; }

@@ -57,6 +57,12 @@ struct FrameResult {
   int constrained_point_residuals = 0;
   int constrained_line_residuals = 0;
   double dynamics_threshold = 0.0;  // epsilon_d used by Algorithm 1 (pixels)
+  /// When a new detection arrived: mean IoU with it of the previous detection carried forward to
+  /// its frame, and of the same boxes only grown (-1: not measured this frame).
+  double propagation_iou = -1.0;
+  double stale_iou = -1.0;
+  int mover_regions = 0;  // moving regions found without a box
+  int mover_points = 0;   // features they took out
 };
 
 class System {

@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <deque>
 #include <optional>
+#include <unordered_set>
 #include <vector>
 
 #include "mcslam/core/camera.hpp"
@@ -14,6 +15,7 @@
 #include "mcslam/optim/constraint_residual.hpp"
 #include "mcslam/slam/dynamics.hpp"
 #include "mcslam/slam/frame.hpp"
+#include "mcslam/slam/objects.hpp"
 #include "mcslam/slam/options.hpp"
 
 namespace mcslam::slam {
@@ -44,15 +46,8 @@ struct KeyFrameRequest {
   /// landmark may be created or fused there). Empty when the frame had no such object.
   std::vector<std::uint8_t> excluded_points;
   std::vector<std::uint8_t> excluded_lines;
-};
-
-/// One detected object of a frame, with the decisions of Algorithms 1 and 2.
-struct ObjectReport {
-  perception::Detection detection;  ///< undistorted pixels
-  int track_id = -1;                ///< stable across frames
-  ObjectState state = ObjectState::kStatic;
-  ObjectDecision decision;
-  ConstraintDecision constraint;
+  /// Map points seen to move since the last keyframe (find_movers): the mapper removes them.
+  std::vector<map::PointId> moved_points;
 };
 
 struct TrackingOutcome {
@@ -67,15 +62,8 @@ struct TrackingOutcome {
   int line_inliers = 0;
   int plane_inliers = 0;  // frame planes matched to map planes, after optimisation
   std::optional<KeyFrameRequest> keyframe;
-  /// Dynamic-object handling (when the frame had detections).
-  std::vector<ObjectReport> objects;
-  bool objects_fresh = true;
-  double dynamics_threshold = 0.0;  // epsilon_d used (pixels; 0 when Algorithm 1 did not run)
-  /// Label of each point and line segment of the frame (all static without detections).
-  std::vector<FeatureLabel> point_labels;
-  std::vector<FeatureLabel> line_labels;
-  int constrained_point_residuals = 0;  // residuals (9) in the final pose optimisation
-  int constrained_line_residuals = 0;   // residuals (10)
+  /// Object handling: boxes, decisions, feature labels (all static without detections).
+  ObjectOutputs objects;
 };
 
 class Tracker {
@@ -136,28 +124,6 @@ class Tracker {
   };
   /// What the next frame needs of this one: features, pose (relative to a keyframe, so that it
   /// follows bundle adjustment) and, per feature, its landmark or its camera-frame geometry.
-  /// A tracked frame kept for Algorithm 1 (dynamics.frame_gap frames back).
-  struct PastFrame {
-    Frame frame;
-    SE3 T_c_w;
-  };
-  /// Boxes of the current frame, each feature's boxes (bit b: box b), and what tracking leaves
-  /// out of the standard residuals.
-  struct FrameBoxes {
-    std::vector<perception::Detection> boxes;
-    std::vector<int> tracks;   // track index of each box
-    std::vector<float> depth;  // median depth of each box's points (-1: none)
-    std::vector<std::uint64_t> point_boxes;
-    std::vector<std::uint64_t> line_boxes;
-    std::vector<std::uint8_t> point_excluded;
-    std::vector<std::uint8_t> line_excluded;
-    std::vector<optim::ConstrainedPointMeasurement> constrained_points;
-    std::vector<optim::ConstrainedLineMeasurement> constrained_lines;
-    std::vector<ObjectDecision> decisions;
-    std::vector<ConstraintDecision> constraints;
-    double threshold = 0.0;  // epsilon_d used in this frame (pixels)
-    bool any() const { return !boxes.empty(); }
-  };
   struct LastFrame {
     Frame frame;
     map::KeyFrameId reference = map::kNoId;
@@ -170,20 +136,9 @@ class Tracker {
   };
 
   TrackingOutcome initialize(const Frame& frame);
-  /// Assigns the frame's features to its boxes (features on a structural plane excepted) and
-  /// leaves the features of objects known to move out of the first pose estimate.
-  void prepare_objects(const Frame& frame);
-  /// Algorithms 1 and 2 against the camera motion of the first pose estimate; sets the labels,
-  /// the exclusions and the constrained measurements for the final optimisation.
-  void classify_objects(const Frame& frame, const SE3& T_c_w);
-  /// Matches the frame's boxed features to an earlier frame by appearance.
-  std::vector<MotionMatch> match_to_reference(const Frame& frame, const PastFrame& ref,
-                                              const SE3& T_cur_ref) const;
-  void report_objects(const Frame& frame, TrackingOutcome& out) const;
-  /// epsilon_d for this frame: the configured one, or background_factor times the median
-  /// distance of the background's matches when the frame is noisier (fast motion, blur,
-  /// rolling shutter).
-  double adaptive_threshold(const std::vector<MotionMatch>& matches, const SE3& T_cur_ref) const;
+  /// Motion without a box (ObjectHandler::find_movers) after the final estimate; re-optimises
+  /// without the movers' features when it finds some. Returns the weighted inlier count.
+  int remove_movers(const Frame& frame, Associations& assoc, SE3& T_c_w, int inliers);
   bool track_last_frame(const Frame& frame, const SE3& prediction, Associations& assoc, SE3& T_c_w);
   bool track_reference_keyframe(const Frame& frame, Associations& assoc, SE3& T_c_w);
   bool relocalise(const Frame& frame, Associations& assoc, SE3& T_c_w);
@@ -233,9 +188,11 @@ class Tracker {
   std::unordered_map<map::PointId, LandmarkStatistics> statistics_;
   std::unordered_map<map::LineId, LandmarkStatistics> line_statistics_;
   // Dynamic objects.
-  ObjectTracks tracks_;
-  FrameBoxes boxes_;
-  std::deque<PastFrame> history_;  // newest first
+  ObjectHandler objects_;
+  // Map points seen to move since the last keyframe request, and all of them until the mapper
+  // has removed them (tracking no longer matches them).
+  std::vector<map::PointId> moved_points_;
+  std::unordered_set<map::PointId> moved_set_;
 };
 
 }  // namespace mcslam::slam
