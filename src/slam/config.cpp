@@ -130,6 +130,7 @@ std::vector<Field> mcslam_fields(PinholeCamera& c, SystemOptions& o) {
       {"dynamics.find_movers", &t.dynamics.find_movers},
       {"dynamics.mover_displacement", &t.dynamics.mover_displacement},
       {"dynamics.mover_relative", &t.dynamics.mover_relative},
+      {"dynamics.mover_pixels", &t.dynamics.mover_pixels},
       {"dynamics.mover_link_radius", &t.dynamics.mover_link_radius},
       {"dynamics.mover_link_depth", &t.dynamics.mover_link_depth},
       {"dynamics.mover_min_seeds", &t.dynamics.mover_min_seeds},

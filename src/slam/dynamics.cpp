@@ -61,6 +61,7 @@ std::optional<std::string> DynamicsOptions::check() const {
   if (!(object_depth_gap > 0.0)) return "dynamics.object_depth_gap must be > 0 (metres)";
   if (!(mover_displacement > 0.0)) return "dynamics.mover_displacement must be > 0 (metres)";
   if (!(mover_relative >= 0.0)) return "dynamics.mover_relative must be >= 0";
+  if (!(mover_pixels >= 0.0)) return "dynamics.mover_pixels must be >= 0";
   if (!(mover_link_radius > 0.0)) return "dynamics.mover_link_radius must be > 0 (pixels)";
   if (!(mover_link_depth > 0.0)) return "dynamics.mover_link_depth must be > 0 (metres)";
   if (mover_min_seeds < 1) return "dynamics.mover_min_seeds must be >= 1";

@@ -135,6 +135,10 @@ struct DynamicsOptions {
   bool find_movers = true;
   double mover_displacement = 0.05;
   double mover_relative = 0.03;
+  /// ... and whose reprojection lands more than this many pixels (level 0) from the keypoint:
+  /// five standard deviations of a keypoint's position. A depth error alone (dark or shiny
+  /// surfaces, mixed pixels at an edge) moves a point along its ray, not across the image.
+  double mover_pixels = 5.0;
   /// Seeds and features are linked when closer than mover_link_radius pixels in the image and
   /// mover_link_depth metres in depth; features on a structural plane never link (a person's
   /// feet touch the floor). A region needs mover_min_seeds seeds, and at least mover_seed_share
