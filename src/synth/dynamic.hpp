@@ -14,5 +14,9 @@ double motion_time(double t, double start_time, double speed);
 /// pose_at (texture_id is left to the caller).
 SceneObject make_person(const SynthOptions::DynamicObjects& options);
 SceneObject make_chair(const SynthOptions::DynamicObjects& options);
+/// Person `number` (2 .. SynthOptions::DynamicObjects::kMaxPeople) of the crowd of
+/// make_room_scene: class name, half extents, motion kind and pose_at (texture_id and
+/// detectable are left to the caller).
+SceneObject make_crowd_person(int number, const SynthOptions::DynamicObjects& options);
 
 }  // namespace mcslam::synth::detail

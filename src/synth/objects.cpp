@@ -79,6 +79,7 @@ perception::FrameDetections oracle_detections(const RenderedFrame& frame, const 
   for (int k = 0; k < n; ++k) {
     const LabelStats& s = stats[static_cast<std::size_t>(k)];
     if (s.pixels == 0 || s.pixels < min_pixels) continue;
+    if (!scene.objects[static_cast<std::size_t>(k)].detectable) continue;
     perception::Detection d;
     const cv::Rect r = rect_of(s);
     d.box = cv::Rect2f(static_cast<float>(r.x), static_cast<float>(r.y),

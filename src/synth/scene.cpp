@@ -108,6 +108,13 @@ std::optional<std::string> SynthOptions::check() const {
     return "dynamic.chair_scale must be finite and in" + range(D::kMinScale, D::kMaxChairScale);
   if (!finite(dynamic.start_time) || dynamic.start_time < 0.0)
     return "dynamic.start_time must be finite and >= 0 s";
+  if (dynamic.people < 0 || dynamic.people > D::kMaxPeople)
+    return "dynamic.people must be in [0, " + std::to_string(D::kMaxPeople) + "] (got " +
+           std::to_string(dynamic.people) + ")";
+  if (dynamic.undetected_people < 0 || dynamic.undetected_people > dynamic.people)
+    return "dynamic.undetected_people must be in [0, dynamic.people] = [0, " +
+           std::to_string(dynamic.people) + "] (got " + std::to_string(dynamic.undetected_people) +
+           ")";
   return std::nullopt;
 }
 
@@ -232,8 +239,18 @@ Scene make_room_scene(const SynthOptions& options) {
     add_object(std::move(object));
   }
   if (options.dynamic.enabled) {
-    if (options.dynamic.person) add_object(detail::make_person(options.dynamic));
+    // Person 1 and the chair keep their indices (8 and 9) and textures whatever the crowd; the
+    // other people follow them.
+    const int people = options.dynamic.people_in_scene();
+    const int first_undetected = people - options.dynamic.undetected_people + 1;
+    auto add_person = [&](int number, SceneObject person) {
+      person.detectable = number < first_undetected;
+      add_object(std::move(person));
+    };
+    if (people >= 1) add_person(1, detail::make_person(options.dynamic));
     if (options.dynamic.chair) add_object(detail::make_chair(options.dynamic));
+    for (int number = 2; number <= people; ++number)
+      add_person(number, detail::make_crowd_person(number, options.dynamic));
   }
   scene.textures = make_textures(jobs, options.texture);
   return scene;

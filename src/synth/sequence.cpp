@@ -3,11 +3,13 @@
 #include <algorithm>
 #include <charconv>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <opencv2/imgcodecs.hpp>
 #include <system_error>
+#include <vector>
 
 #include "mcslam/core/error.hpp"
 #include "mcslam/io/files.hpp"
@@ -91,11 +93,11 @@ std::string objects_header_json(const SyntheticSequence& sequence, int min_pixel
     // Class names are plain COCO words (no characters that JSON would need to escape).
     std::snprintf(buffer, sizeof(buffer),
                   "%s\n    {\"index\": %zu, \"class\": \"%s\", \"class_id\": %d, "
-                  "\"motion\": \"%s\", \"size\": [%s, %s, %s]}",
+                  "\"motion\": \"%s\", \"size\": [%s, %s, %s], \"detected\": %s}",
                   k == 0 ? "" : ",", k, o.class_name.c_str(),
                   perception::coco_class_id(o.class_name), motion_kind_name(o.motion),
                   format_double(size.x()).c_str(), format_double(size.y()).c_str(),
-                  format_double(size.z()).c_str());
+                  format_double(size.z()).c_str(), o.detectable ? "true" : "false");
     s += buffer;
   }
   s += objects.empty() ? "],\n" : "\n  ],\n";
@@ -113,7 +115,46 @@ void write_image(const std::filesystem::path& path, const cv::Mat& image) {
   if (!ok) throw InputError(file_error(path.string(), "cannot write image"));
 }
 
+/// The label image on disk: object index + 1, 0 for the room (see write_sequence).
+cv::Mat label_image(const cv::Mat& labels) {
+  cv::Mat out;
+  labels.convertTo(out, CV_16UC1, 1.0, 1.0);
+  return out;
+}
+
+void make_directory(const std::filesystem::path& dir) {
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec || !std::filesystem::is_directory(dir))
+    throw InputError(file_error(
+        dir.string(), "cannot create directory" + (ec ? ": " + ec.message() : std::string())));
+}
+
 }  // namespace
+
+cv::Mat read_label_image(const std::string& path) {
+  cv::Mat raw;
+  try {
+    raw = cv::imread(path, cv::IMREAD_UNCHANGED);
+  } catch (const cv::Exception& e) {
+    throw InputError(file_error(path, std::string("cannot read label image: ") + e.what()));
+  }
+  if (raw.empty()) throw InputError(file_error(path, "cannot read label image"));
+  if (raw.type() != CV_16UC1)
+    throw InputError(file_error(path, "not a label image (expected a 16-bit single-channel PNG)"));
+  cv::Mat labels(raw.size(), CV_16SC1);
+  for (int y = 0; y < raw.rows; ++y) {
+    const std::uint16_t* src = raw.ptr<std::uint16_t>(y);
+    std::int16_t* dst = labels.ptr<std::int16_t>(y);
+    for (int x = 0; x < raw.cols; ++x) {
+      if (src[x] > 32768)
+        throw InputError(file_error(
+            path, "label value " + std::to_string(src[x]) + " is out of range (at most 32768)"));
+      dst[x] = static_cast<std::int16_t>(static_cast<int>(src[x]) - 1);
+    }
+  }
+  return labels;
+}
 
 SyntheticSequence::SyntheticSequence(const SynthOptions& options)
     : options_(validated(options)),
@@ -152,13 +193,25 @@ void write_sequence(const std::string& directory, const SynthOptions& options,
   namespace fs = std::filesystem;
   const SynthOptions checked = validated(options);
   const fs::path root(directory);
-  for (const fs::path& dir : {root, root / "rgb", root / "depth"}) {
+  for (const fs::path& dir : {root, root / "rgb", root / "depth"}) make_directory(dir);
+  const bool with_objects = checked.dynamic.enabled;
+  const fs::path labels_dir = root / "labels", labels_list = root / "labels.txt";
+  {
+    // Label images left by an earlier sequence in this folder (other objects, other frames)
+    // would be mistaken for this one's. Only PNGs go (and the folder when that empties it), so
+    // that nothing else a user keeps there is lost.
     std::error_code ec;
-    fs::create_directories(dir, ec);
-    if (ec || !fs::is_directory(dir))
-      throw InputError(file_error(
-          dir.string(), "cannot create directory" + (ec ? ": " + ec.message() : std::string())));
+    fs::remove(labels_list, ec);
+    if (fs::is_directory(labels_dir, ec)) {
+      std::vector<fs::path> stale;
+      for (const auto& entry : fs::directory_iterator(labels_dir, ec))
+        if (entry.is_regular_file(ec) && entry.path().extension() == ".png")
+          stale.push_back(entry.path());
+      for (const fs::path& path : stale) fs::remove(path, ec);
+      fs::remove(labels_dir, ec);  // fails, as it should, when something else is left
+    }
   }
+  if (with_objects) make_directory(labels_dir);
   const SyntheticSequence sequence(checked);
   const PinholeCamera camera = sequence.camera();
 
@@ -194,9 +247,14 @@ void write_sequence(const std::string& directory, const SynthOptions& options,
   detections.image_width = camera.width;
   detections.image_height = camera.height;
   detections.source = "synthetic ground truth";
-  const bool with_objects = checked.dynamic.enabled;
   std::string objects_json;
-  if (with_objects) objects_json = objects_header_json(sequence, min_pixels);
+  std::ofstream labels_out;
+  if (with_objects) {
+    objects_json = objects_header_json(sequence, min_pixels);
+    labels_out = open_output(labels_list);
+    labels_out << "# object label images (16-bit: object index + 1, 0 for the room)\n"
+               << "# generated by mcslam synth\n# timestamp filename\n";
+  }
 
   const int n = sequence.size();
   for (int i = 0; i < n; ++i) {
@@ -223,9 +281,12 @@ void write_sequence(const std::string& directory, const SynthOptions& options,
                   p.x(), p.y(), p.z(), q.x(), q.y(), q.z(), q.w());
     gt_out << line;
     detections.frames.push_back(sequence.oracle_detections(i, frame, min_pixels));
-    if (with_objects)
+    if (with_objects) {
       objects_json += (i == 0 ? "\n" : ",\n") +
                       objects_frame_json(sequence.timestamp(i), sequence.object_states(i, frame));
+      write_image(labels_dir / (stamp + ".png"), label_image(frame.labels));
+      labels_out << stamp << " labels/" << stamp << ".png\n";
+    }
     if (progress) progress(i + 1, n);
   }
   close_output(rgb_out, rgb_list);
@@ -234,6 +295,7 @@ void write_sequence(const std::string& directory, const SynthOptions& options,
   perception::write_detections((root / "detections.json").string(), detections);
   const fs::path objects_path = root / "objects.json";
   if (with_objects) {
+    close_output(labels_out, labels_list);
     objects_json += n > 0 ? "\n  ]\n}\n" : "]\n}\n";
     io::write_file_atomic(objects_path.string(), objects_json);
   } else {

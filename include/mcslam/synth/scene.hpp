@@ -52,10 +52,12 @@ struct SynthOptions {
   /// at t (the middle of the readout).
   double readout_time = 0.0;
 
-  /// Moving objects for dynamic-scene tests: a "person" that moves freely in 3D and a "chair"
-  /// that slides on the floor (see make_room_scene). Disabled by default; then the scene is
-  /// exactly the static room.
+  /// Moving objects for dynamic-scene tests: "people" that move freely in 3D (one by default, up
+  /// to kMaxPeople: a crowd) and a "chair" that slides on the floor (see make_room_scene).
+  /// Disabled by default; then the scene is exactly the static room.
   struct DynamicObjects {
+    /// Valid range of people.
+    static constexpr int kMaxPeople = 6;
     /// Valid range of person_scale and chair_scale (the chair has less room to slide in).
     static constexpr double kMinScale = 0.3;
     static constexpr double kMaxPersonScale = 1.6;
@@ -66,18 +68,31 @@ struct SynthOptions {
     static constexpr double kRampTime = 1.0;
 
     bool enabled = false;
-    bool person = true;  ///< add the person (when enabled)
+    bool person = true;  ///< add the people (when enabled); false is the same as people = 0
     bool chair = true;   ///< add the chair (when enabled)
-    /// Time scale of the person's motion: its peak horizontal speed in m/s (the vertical bobbing
-    /// and tilting speed up by the same factor); 0 keeps it still.
+    /// How many people walk through the room, 0 .. kMaxPeople (when enabled and person): person 1
+    /// is the original one; persons 2 .. 6 are the crowd of make_room_scene.
+    int people = 1;
+    /// How many of the people the oracle detector misses, 0 .. people: the last ones (persons
+    /// people - undetected_people + 1 .. people) never get a box in oracle_detections (nor in
+    /// detections.json), though their pixels are labelled like everyone else's.
+    int undetected_people = 0;
+    /// Time scale of the people's motion: person 1's peak horizontal speed in m/s (the vertical
+    /// bobbing and tilting speed up by the same factor; each crowd person walks at its own
+    /// multiple of it); 0 keeps them still.
     double person_speed = 1.0;
     /// Time scale of the chair's motion: its peak speed on the floor in m/s.
     double chair_speed = 0.5;
-    /// Size factors of the person (0.5 x 0.35 x 1.7 m at 1) and the chair (0.5 x 0.5 x 0.9 m).
+    /// Size factors of person 1 (0.5 x 0.35 x 1.7 m at 1) and the chair (0.5 x 0.5 x 0.9 m). The
+    /// crowd (persons 2 .. 6) keeps its own sizes: their paths are fitted between the camera and
+    /// the furniture, with no room to grow.
     double person_scale = 1.0;
     double chair_scale = 1.0;
-    /// Scene time (seconds) at which both objects start moving; before it they are static.
+    /// Scene time (seconds) at which all objects start moving; before it they are static.
     double start_time = 1.0;
+
+    /// The number of people in the scene: people when enabled and person, else 0.
+    int people_in_scene() const { return enabled && person ? people : 0; }
   };
   DynamicObjects dynamic;
 
@@ -134,6 +149,9 @@ struct SceneObject {
   std::function<SE3(double)> pose_at;  ///< T_w_o at scene time t
   int texture_id = 0;
   MotionKind motion = MotionKind::kStatic;
+  /// Whether the oracle detector (synth::oracle_detections) reports it; false for the people it
+  /// misses (SynthOptions::DynamicObjects::undetected_people).
+  bool detectable = true;
 
   /// The 8 corners in the world frame at time t.
   std::vector<Eigen::Vector3d> corners_at(double t) const;
@@ -166,13 +184,17 @@ struct Scene {
 /// +x wall, an "oven" and a "sink" by the +y wall, a "suitcase" by the -y wall and a "couch" behind
 /// the camera's start.
 ///
-/// With options.dynamic.enabled, the person and then the chair (when requested) follow as objects
-/// 8 (and 9). Both are at rest until start_time, then their motion ramps up smoothly over kRampTime
-/// seconds and continues for ever, without pauses (all motions are sums of sinusoids in the
-/// object's own motion time, which runs at the object's speed factor). Both stay at least 0.8 m
-/// from every camera position of camera_path (at any speed), inside the room, and clear of the
-/// static objects and of each other (their areas are disjoint), at every scale in range:
-///  - "person" (MotionKind::kFree): a box 0.35 (x) x 0.5 (y) x 1.7 (z) m times person_scale, pacing
+/// With options.dynamic.enabled, person 1 (when people_in_scene() >= 1), the chair (when
+/// requested) and then persons 2 .. people follow as objects 8, 9, ... (so person 1 is 8 and the
+/// chair 9 whatever the crowd; without person 1 or the chair the later objects move up). All are
+/// at rest until start_time, then their motion ramps up smoothly over kRampTime seconds and
+/// continues for ever, without pauses (all motions are sums of sinusoids in the object's own
+/// motion time, which runs at the object's speed factor). All stay inside the room and clear of
+/// the static objects and of each other (their areas are disjoint), at every scale and speed in
+/// range; person 1 and the chair stay at least 0.8 m from every camera position of camera_path
+/// (at any speed), the crowd 0.4 m:
+///  - "person" 1 (MotionKind::kFree): a box 0.35 (x) x 0.5 (y) x 1.7 (z) m times person_scale,
+///  pacing
 ///    in the free area in front of the refrigerator (x 1.57-2.30, y -1.11-0.35, which the camera
 ///    sees when it looks straight ahead or right): a figure-of-eight walk, mainly across the view
 ///    (along y), whose peak horizontal speed is exactly person_speed m/s; while it walks it bobs up
@@ -185,10 +207,24 @@ struct Scene {
 ///    chair_speed m/s) and turning about the vertical axis (+-25 deg up to scale 1.2; less above,
 ///    so that it fits the corner: +-15 deg at 1.3, +-9 deg at 1.4, where it only slides along x).
 ///    It stops for an instant where it reverses (a frame may then count as not moving).
+///  - persons 2 .. 6, the crowd (MotionKind::kFree, each with its own texture): boxes of about
+///    person 1's size (fixed: person_scale is person 1's only), each walking straight back and
+///    forth along its own lane at its own fixed multiple (0.6-1.0) of person_speed, from its own
+///    starting point, bobbing, leaning and turning as person 1 does but out of step with it:
+///     2: close in front of the camera, across the whole view (along y at x 1.12-1.55, 0.4-1.3 m
+///        from the camera), so that it fills a large part of the image when it passes;
+///     3: along x on the camera's right (y -1.61 to -1.15), seen at the image's right and top
+///        borders when the camera looks right;
+///     4: the same on the left (y 1.15-1.62, in front of the oven);
+///     5: along x behind the tv (y -2.45 to -1.89), 2-3 m away;
+///     6: a slim one (1.5 m) along y behind the dining table, against the +x wall.
+///    A person counted in undetected_people gets detectable = false.
 /// At scale 1 and default speeds, over the default 300 frames, the person is in view (at least
 /// oracle_min_pixels) in 55% of the frames and the chair in 48% (the camera yaws by +-40 deg and
 /// little free floor lies 0.8 m away from it), one of them or both in 94%; see the measurements of
-/// tests/synth/dynamic_scene_test.cpp for other scales.
+/// tests/synth/dynamic_scene_test.cpp for other scales. With people = 3 (tests/synth/
+/// crowd_test.cpp), person 2 is in view in 50% of the frames and fills 40% of the image or more
+/// in 8.7% (57% at most), and person 3 is in view in 32%, always touching the image border.
 Scene make_room_scene(const SynthOptions& options);
 
 /// The camera path: T_w_c for frames i = 0 .. frames - 1 at scene time t = i / fps, with
