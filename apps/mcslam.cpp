@@ -269,13 +269,21 @@ int main(int argc, char** argv) {
   auto& dyn = synth_options.dynamic;
   bool no_person = false, no_chair = false;
   synth_cmd->add_flag("--dynamic", dyn.enabled,
-                      "Add a person moving freely and a chair sliding on the floor (writes "
-                      "objects.json with their ground truth)");
-  synth_cmd->add_flag("--no-person", no_person, "Dynamic scene without the person");
+                      "Add people moving freely and a chair sliding on the floor (writes "
+                      "objects.json and labels/ with their ground truth)");
+  synth_cmd->add_flag("--no-person", no_person, "Dynamic scene without people (--people 0)");
+  auto* people_opt = synth_cmd->add_option(
+      "--people", dyn.people,
+      "Number of people walking through the dynamic scene, 0-6 (default 1): person 2 passes "
+      "close in front of the camera, 3 and 4 at the image border, 5-6 further away");
+  synth_cmd->add_option("--undetected-people", dyn.undetected_people,
+                        "How many of the people (the last ones) get no box in detections.json, "
+                        "0..--people (default 0)");
   synth_cmd->add_flag("--no-chair", no_chair, "Dynamic scene without the chair");
-  synth_cmd->add_option("--person-speed", dyn.person_speed, "Person's peak speed (m/s)");
+  synth_cmd->add_option("--person-speed", dyn.person_speed,
+                        "Person 1's peak speed (m/s); the others walk at fixed multiples of it");
   synth_cmd->add_option("--chair-speed", dyn.chair_speed, "Chair's peak speed (m/s)");
-  synth_cmd->add_option("--person-scale", dyn.person_scale, "Person's size factor");
+  synth_cmd->add_option("--person-scale", dyn.person_scale, "Person 1's size factor");
   synth_cmd->add_option("--chair-scale", dyn.chair_scale, "Chair's size factor");
   synth_cmd->add_option("--start-time", dyn.start_time, "Scene time (s) when the objects start");
   synth_cmd->add_flag("--quiet,-q", quiet, "No progress");
@@ -325,6 +333,9 @@ int main(int argc, char** argv) {
     if (eval_cmd->parsed()) return eval_command(gt_path, est_path, bonn, json, max_dt);
     if (synth_cmd->parsed()) {
       if (texture == "low") synth_options.texture = mcslam::synth::TextureLevel::kLow;
+      if (no_person && people_opt->count() > 0 && dyn.people > 0)
+        throw mcslam::InputError("--no-person and --people " + std::to_string(dyn.people) +
+                                 " exclude each other (--no-person is --people 0)");
       if (no_person) dyn.person = false;
       if (no_chair) dyn.chair = false;
       synth_options.width = synth_options.width;
