@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <future>
 #include <iomanip>
 #include <iostream>
 #include <map>
@@ -76,7 +77,8 @@ std::string format_tum_keyframes(const Trajectory& keyframes) {
 
 /// The detection source the request asks for, or null (geometry only).
 std::unique_ptr<slam::DetectionSource> make_detection_source(const RunRequest& request,
-                                                             const PinholeCamera& camera) {
+                                                             const PinholeCamera& camera,
+                                                             const slam::SystemOptions& system) {
   if (request.model && request.detections)
     throw InputError("--model and --detections exclude each other: give one source of boxes");
   if (request.detections) {
@@ -94,8 +96,10 @@ std::unique_ptr<slam::DetectionSource> make_detection_source(const RunRequest& r
     perception::DetectorOptions options;
     if (request.confidence) options.confidence = *request.confidence;
     if (auto e = options.check()) throw InputError("--confidence: " + *e);
+    // A frame that waits for its own boxes must be given to the detector.
+    const bool waits = request.wait_for_detections || system.sequential;
     return std::make_unique<slam::ModelDetectionSource>(
-        perception::Detector(*request.model, options));
+        perception::Detector(*request.model, options), waits ? 1 : system.detection_interval);
   }
   return nullptr;
 }
@@ -385,14 +389,24 @@ nlohmann::json run_frames(const RunRequest& request, const io::RgbdSequence& seq
     }
     passes.push_back(std::move(p));
   };
+  const auto prefetch = [&](std::size_t k) {
+    return std::async(std::launch::async, [&plan, k, factor = config.camera.depth_factor] {
+      return io::load_rgbd(plan.frames[k], factor);
+    });
+  };
+  std::future<io::RgbdImages> next_images;
+  if (total > 0) next_images = prefetch(0);
   for (std::size_t i = 0; i < total; ++i) {
     if (request.stop_requested && request.stop_requested()) {
       interrupted = true;
       break;
     }
     const io::FrameEntry& entry = plan.frames[i];
+    // The images were decoded on a prefetch thread while the frame before was processed;
+    // image_load is the time the frame loop waited for them.
     Stopwatch load_watch;
-    const io::RgbdImages images = io::load_rgbd(entry, config.camera.depth_factor);
+    const io::RgbdImages images = next_images.get();
+    if (i + 1 < total) next_images = prefetch(i + 1);
     if (images.rgb.cols != config.camera.width || images.rgb.rows != config.camera.height)
       throw InputError(file_error(entry.rgb_path, "image is " + std::to_string(images.rgb.cols) +
                                                       "x" + std::to_string(images.rgb.rows) +
@@ -689,7 +703,7 @@ nlohmann::json run_sequence(const RunRequest& request) {
   if (request.no_dynamics) config.options.tracker.dynamics.enabled = false;
   if (request.no_constraints) config.options.tracker.dynamics.constraints = false;
   std::unique_ptr<slam::DetectionSource> detection_source =
-      make_detection_source(request, config.camera);
+      make_detection_source(request, config.camera, config.options);
   if (!detection_source)
     std::cerr << "mcslam: warning: no --model or --detections given: running on geometry only, "
                  "without dynamic-object handling\n";

@@ -158,6 +158,7 @@ std::vector<Field> mcslam_fields(PinholeCamera& c, SystemOptions& o) {
       {"mapper.ba.refine_iterations", &m.ba.refine_iterations},
       {"mapper.ba.num_threads", &m.ba.num_threads},
       {"system.sequential", &o.sequential},
+      {"system.detection_interval", &o.detection_interval},
   };
 }
 

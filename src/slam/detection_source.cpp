@@ -21,8 +21,8 @@ std::string FileDetectionSource::describe() const {
   return "detections file " + path_ + " (" + std::to_string(file_.frames.size()) + " frames)";
 }
 
-ModelDetectionSource::ModelDetectionSource(perception::Detector detector)
-    : detector_(std::move(detector)) {
+ModelDetectionSource::ModelDetectionSource(perception::Detector detector, int interval)
+    : detector_(std::move(detector)), interval_(std::max(1, interval)) {
   worker_ = std::thread([this] { run(); });
 }
 
@@ -39,6 +39,9 @@ void ModelDetectionSource::submit(std::uint64_t frame_id, double, const cv::Mat&
   {
     std::lock_guard<std::mutex> lock(mutex_);
     if (job_ || running_) return;  // busy: this frame is skipped
+    if (last_submitted_ && frame_id < *last_submitted_ + static_cast<std::uint64_t>(interval_))
+      return;  // not yet due
+    last_submitted_ = frame_id;
     job_.emplace(frame_id, bgr);
   }
   cv_.notify_all();

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <future>
 #include <limits>
 
 namespace mcslam::slam {
@@ -49,18 +50,33 @@ Frame FrameBuilder::build(std::uint64_t id, double timestamp, const cv::Mat& gra
                           StageTimes* times) const {
   auto result = std::make_shared<features::FrameFeatures>();
   result->pyramid = pyramid_;
+  // Lines and planes are extracted on their own threads while this one extracts the points:
+  // the three read the images only and write their own lists.
+  double line_ms = 0.0, plane_ms = 0.0;
+  std::future<void> lines, planes;
+  if (use_.lines)
+    lines = std::async(std::launch::async, [&] {
+      Stopwatch w;
+      build_lines(gray, depth, motion, *result);
+      line_ms = w.elapsed_ms();
+    });
+  if (use_.planes)
+    planes = std::async(std::launch::async, [&] {
+      Stopwatch w;
+      extract_planes(depth, motion, *result);
+      plane_ms = w.elapsed_ms();
+    });
   Stopwatch watch;
   if (use_.points) build_points(gray, depth, motion, *result);
   if (times) times->add("orb_extract", watch.elapsed_ms());
-  if (use_.lines) {
-    watch.restart();
-    build_lines(gray, depth, motion, *result);
-    if (times) times->add("line_extract", watch.elapsed_ms());
-  }
-  if (use_.planes) {
-    watch.restart();
-    build_planes(depth, motion, *result);
-    if (times) times->add("plane_extract", watch.elapsed_ms());
+  watch.restart();
+  if (lines.valid()) lines.get();
+  if (planes.valid()) planes.get();
+  if (use_.planes) assign_planes(*result);
+  if (times) {
+    times->add("extract_wait", watch.elapsed_ms());
+    if (use_.lines) times->add_concurrent("line_extract", line_ms);
+    if (use_.planes) times->add_concurrent("plane_extract", plane_ms);
   }
   Frame frame;
   frame.id = id;
@@ -149,8 +165,8 @@ void FrameBuilder::build_lines(const cv::Mat& gray, const cv::Mat& depth, const 
   }
 }
 
-void FrameBuilder::build_planes(const cv::Mat& depth, const FrameMotion& motion,
-                                features::FrameFeatures& out) const {
+void FrameBuilder::extract_planes(const cv::Mat& depth, const FrameMotion& motion,
+                                  features::FrameFeatures& out) const {
   features::PlaneExtraction extraction = planes_->extract(depth);
   out.planes = std::move(extraction.planes);
   if (motion.T_rgb_depth) {
@@ -163,6 +179,9 @@ void FrameBuilder::build_planes(const cv::Mat& depth, const FrameMotion& motion,
       for (auto& h : plane.hull) h = T * h;
     }
   }
+}
+
+void FrameBuilder::assign_planes(features::FrameFeatures& out) const {
   // The plane each point with depth lies on (the nearest within on_plane_distance).
   for (auto& p : out.points) {
     if (!p.has_depth()) continue;

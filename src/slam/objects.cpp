@@ -449,7 +449,8 @@ int ObjectHandler::static_points_with_depth(const Frame& frame) const {
 }
 
 std::vector<MotionMatch> ObjectHandler::match_to_reference(const Frame& frame, const PastFrame& ref,
-                                                           const SE3& T_cur_ref) const {
+                                                           const SE3& T_cur_ref,
+                                                           std::uint64_t boxes) const {
   const DynamicsOptions& opt = options_;
   const auto& cur = *frame.features;
   const auto& old = *ref.features;
@@ -477,6 +478,7 @@ std::vector<MotionMatch> ObjectHandler::match_to_reference(const Frame& frame, c
   std::size_t background_seen = 0;
   for (std::size_t i = 0; i < cur.points.size(); ++i) {
     if (point_boxes_[i] == 0 && background_seen++ % stride != 0) continue;
+    if (point_boxes_[i] != 0 && (point_boxes_[i] & boxes) == 0) continue;
     const auto& f = cur.points[i];
     const auto at = predict(f.keypoint.uv.cast<double>(), f.has_depth() ? f.depth : 0.0);
     if (!at) continue;
@@ -526,7 +528,7 @@ std::vector<MotionMatch> ObjectHandler::match_to_reference(const Frame& frame, c
   // Lines: midpoint within the window, similar direction, best LBD distance.
   const double max_angle = std::cos(20.0 * M_PI / 180.0);
   for (std::size_t i = 0; i < cur.lines.size(); ++i) {
-    if (line_boxes_[i] == 0) continue;
+    if ((line_boxes_[i] & boxes) == 0) continue;
     const auto& l = cur.lines[i];
     const Eigen::Vector3d mid_c = 0.5 * (l.start_c + l.end_c);
     const auto at = l.has_depth ? predict(camera_.project(mid_c), mid_c.z())
@@ -612,11 +614,13 @@ void ObjectHandler::classify(const Frame& frame, const SE3& T_c_w) {
     // A box with too few matches to that frame (an object that just came into view) is tried
     // against the last frame.
     if (&ref != &history_.front()) {
-      bool undecided = false;
-      for (const auto& d : decisions_) undecided = undecided || !d.decided;
-      if (undecided) {
+      std::uint64_t undecided = 0;
+      for (std::size_t b = 0; b < n_boxes; ++b)
+        if (!decisions_[b].decided) undecided |= std::uint64_t{1} << b;
+      if (undecided != 0) {
         const SE3 T_cur_last = T_c_w * history_.front().T_c_w->inverse();
-        const auto recent_matches = match_to_reference(frame, history_.front(), T_cur_last);
+        const auto recent_matches =
+            match_to_reference(frame, history_.front(), T_cur_last, undecided);
         DynamicsOptions last_opt = opt;
         last_opt.epipolar_threshold = adaptive_threshold(recent_matches, T_cur_last);
         const auto retry = detect_dynamic_objects(static_cast<int>(n_boxes), recent_matches,

@@ -68,6 +68,8 @@ std::optional<std::string> MapperOptions::check() const {
 std::optional<std::string> SystemOptions::check() const {
   if (!use.points && !use.lines && !use.planes)
     return "features.points, features.lines and features.planes are all off";
+  if (detection_interval < 1 || detection_interval > 30)
+    return "system.detection_interval must be in [1, 30] (frames)";
   if (auto e = orb.check()) return e;
   if (auto e = lines.check()) return e;
   if (auto e = planes.check()) return e;

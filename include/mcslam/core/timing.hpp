@@ -1,6 +1,7 @@
 #pragma once
 // Per-stage wall-clock timing of the per-frame pipeline.
 
+#include <algorithm>
 #include <chrono>
 #include <string>
 #include <utility>
@@ -22,13 +23,23 @@ class Stopwatch {
 };
 
 /// The stages of one frame, in the order they ran, with their durations in milliseconds.
+/// A stage that ran on another thread alongside the frame's own (feature extraction in
+/// parallel) is listed with its duration but left out of the total, which is the frame's wall
+/// time; the frame's wait for it is a stage of its own.
 struct StageTimes {
   std::vector<std::pair<std::string, double>> stages;
+  std::vector<std::string> concurrent;  ///< names of the stages left out of total_ms()
 
   void add(std::string name, double ms) { stages.emplace_back(std::move(name), ms); }
+  void add_concurrent(std::string name, double ms) {
+    concurrent.push_back(name);
+    stages.emplace_back(std::move(name), ms);
+  }
   double total_ms() const {
     double sum = 0.0;
-    for (const auto& s : stages) sum += s.second;
+    for (const auto& s : stages)
+      if (std::find(concurrent.begin(), concurrent.end(), s.first) == concurrent.end())
+        sum += s.second;
     return sum;
   }
 };

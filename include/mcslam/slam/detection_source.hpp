@@ -59,7 +59,9 @@ class FileDetectionSource final : public DetectionSource {
 /// A detector model on its own thread.
 class ModelDetectionSource final : public DetectionSource {
  public:
-  explicit ModelDetectionSource(perception::Detector detector);
+  /// `interval`: a frame is given to the detector only when at least this many frames have
+  /// passed since the last one it was given (1: whenever it is free).
+  explicit ModelDetectionSource(perception::Detector detector, int interval = 1);
   ~ModelDetectionSource() override;
   ModelDetectionSource(const ModelDetectionSource&) = delete;
   ModelDetectionSource& operator=(const ModelDetectionSource&) = delete;
@@ -77,6 +79,8 @@ class ModelDetectionSource final : public DetectionSource {
   std::optional<std::pair<std::uint64_t, cv::Mat>> job_;  // waiting for the worker
   std::optional<std::uint64_t> running_;                  // frame being detected
   std::optional<TimedDetections> newest_;
+  std::optional<std::uint64_t> last_submitted_;
+  int interval_ = 1;
   bool stop_ = false;
   std::thread worker_;
 };

@@ -55,7 +55,9 @@ class FrameBuilder {
  public:
   FrameBuilder(const PinholeCamera& camera, const SystemOptions& options);
   ~FrameBuilder();
-  /// Stage times go to `times` when given: orb_extract, line_extract, plane_extract.
+  /// Stage times go to `times` when given: orb_extract, then extract_wait (the wait for lines
+  /// and planes, extracted on their own threads meanwhile), and line_extract and plane_extract
+  /// as concurrent stages (see StageTimes).
   Frame build(std::uint64_t id, double timestamp, const cv::Mat& gray, const cv::Mat& depth,
               const FrameMotion& motion = {}, StageTimes* times = nullptr) const;
   const std::shared_ptr<const features::ScalePyramid>& pyramid() const { return pyramid_; }
@@ -66,8 +68,11 @@ class FrameBuilder {
                     features::FrameFeatures& out) const;
   void build_lines(const cv::Mat& gray, const cv::Mat& depth, const FrameMotion& motion,
                    features::FrameFeatures& out) const;
-  void build_planes(const cv::Mat& depth, const FrameMotion& motion,
-                    features::FrameFeatures& out) const;
+  /// Planes of the depth image (moved to the colour time); assign_planes then tells each point
+  /// its plane.
+  void extract_planes(const cv::Mat& depth, const FrameMotion& motion,
+                      features::FrameFeatures& out) const;
+  void assign_planes(features::FrameFeatures& out) const;
   /// The rotation that moves a bearing seen at image row v to the middle row's time.
   Eigen::Matrix3d rolling_shutter_rotation(const FrameMotion& motion, double v) const;
 

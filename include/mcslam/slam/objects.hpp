@@ -166,8 +166,11 @@ class ObjectHandler {
   /// Assigns features to boxes (structural planes, background and overlaps resolved).
   void assign_features(const Frame& frame);
   void update_exclusions();
+  /// Matches the features of the boxes in `boxes` (bit b: box b) and a sample of the
+  /// background to an earlier frame by appearance.
   std::vector<MotionMatch> match_to_reference(const Frame& frame, const PastFrame& ref,
-                                              const SE3& T_cur_ref) const;
+                                              const SE3& T_cur_ref,
+                                              std::uint64_t boxes = ~std::uint64_t{0}) const;
   double adaptive_threshold(const std::vector<MotionMatch>& matches, const SE3& T_cur_ref) const;
   const PastFrame* recent(std::uint64_t id) const;
   std::vector<ObjectState> box_states() const;

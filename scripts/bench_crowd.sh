@@ -1,0 +1,120 @@
+#!/usr/bin/env bash
+# Real-crowd benchmark: Bonn crowd (../shared/data/bonn/rgbd_bonn_crowd*) with the YOLOv8n
+# detector, in the default threaded mode, each variant N times (median, min-max), scored with
+# the Bonn marker-to-camera transform. The variants take one part of the object handling away:
+#   default        - everything (class prior, boxes carried forward, background kept, movers)
+#   wait           - --wait-detections: every frame waits for its own boxes (fresh, slower)
+#   no-propagation - boxes of earlier frames only grown, not carried by their features
+#   no-background  - every feature inside a moving object's box left out
+#   no-movers      - no search for motion without a box
+#   no-prior       - people judged by Algorithm 1 alone, as other objects (before the prior)
+#   no-detector    - geometry only
+# It prints ATE (whole run, and frames before / after the people enter at frame 240), tracked
+# share, frames/s, tracking median, the IoU of carried boxes against the detector's next boxes
+# (and of boxes only grown), and the frames where a moving region without a box was found.
+# Usage: scripts/bench_crowd.sh [--runs N] [--output DIR] [--model M.onnx] [--variants a,b,...]
+#                               [SEQ_DIR]
+set -euo pipefail
+cd "$(dirname "$0")/.."
+source scripts/common.sh
+runs=3
+out=results/bench_crowd
+model=../shared/models/yolov8n_320.onnx
+variants=default,wait,no-propagation,no-background,no-movers,no-prior,no-detector
+seq=""
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --runs) runs="$2"; shift 2 ;;
+    --output) out="$2"; shift 2 ;;
+    --model) model="$2"; shift 2 ;;
+    --variants) variants="$2"; shift 2 ;;
+    -*) echo "bench_crowd: unknown option $1" >&2; exit 2 ;;
+    *) seq="$1"; shift ;;
+  esac
+done
+require_mcslam bench_crowd
+[ -n "$seq" ] || seq=$(ls -d ../shared/data/bonn/rgbd_bonn_crowd* 2>/dev/null | head -1 || true)
+[ -n "$seq" ] && [ -f "$seq/rgb.txt" ] || { echo "bench_crowd: no Bonn crowd sequence (give SEQ_DIR)" >&2; exit 1; }
+[ -f "$model" ] || { echo "bench_crowd: $model: model not found (--model)" >&2; exit 1; }
+mkdir -p "$out/runs"
+
+settings() {  # variant -> settings file (empty: none)
+  local file="$out/$1.yaml"
+  case "$1" in
+    no-propagation) printf 'dynamics:\n  propagate_boxes: false\n' > "$file" ;;
+    no-background) printf 'dynamics:\n  separate_background: false\n' > "$file" ;;
+    no-movers) printf 'dynamics:\n  find_movers: false\n' > "$file" ;;
+    no-prior) printf 'dynamics:\n  person_prior: false\n' > "$file" ;;
+    *) return 0 ;;
+  esac
+  echo "$file"
+}
+
+IFS=, read -r -a names <<< "$variants"
+for v in "${names[@]}"; do
+  args=(--model "$model")
+  case "$v" in
+    default|no-propagation|no-background|no-movers|no-prior) ;;
+    wait) args+=(--wait-detections) ;;
+    no-detector) args=() ;;
+    *) echo "bench_crowd: unknown variant $v" >&2; exit 2 ;;
+  esac
+  file=$(settings "$v")
+  [ -n "$file" ] && args+=(--config "$file")
+  for i in $(seq 1 "$runs"); do
+    dir="$out/runs/$v-$i"
+    echo "bench_crowd: $v run $i" >&2
+    ./build/mcslam run "$seq" --output "$dir" "${args[@]}" -q 2> "$dir.err" ||
+      echo "bench_crowd: $v run $i failed, see $dir.err" >&2
+    # Segments before and after the people enter (frame 240 of the sequence), each aligned on
+    # its own.
+    t=$(grep -v '^#' "$seq/rgb.txt" | sed -n 241p | cut -d' ' -f1)
+    if [ -f "$dir/trajectory.txt" ] && [ -f "$seq/groundtruth.txt" ]; then
+      awk -v t="$t" '$1 < t' "$dir/trajectory.txt" > "$dir/before.txt"
+      awk -v t="$t" '$1 >= t' "$dir/trajectory.txt" > "$dir/after.txt"
+      for part in before after; do
+        ./build/mcslam eval --gt "$seq/groundtruth.txt" --est "$dir/$part.txt" --bonn --json \
+          > "$dir/$part.json" 2> /dev/null || rm -f "$dir/$part.json"
+      done
+    fi
+  done
+done
+
+python3 - "$out" "$runs" "$variants" <<'PY'
+import json, os, statistics, sys
+out, runs, variants = sys.argv[1], int(sys.argv[2]), sys.argv[3].split(",")
+def load(path):
+    try:
+        with open(path) as f:
+            return json.load(f)
+    except (OSError, ValueError):
+        return None
+def fmt(values, digits=4):
+    values = [v for v in values if v is not None]
+    if not values:
+        return "-"
+    m = statistics.median(values)
+    if len(values) == 1:
+        return f"{m:.{digits}f}"
+    return f"{m:.{digits}f} ({min(values):.{digits}f}-{max(values):.{digits}f})"
+print("| variant | ATE RMSE (m) | before people | with people | tracked | fps | tracking ms | carried IoU | grown IoU | mover frames |")
+print("|---|---|---|---|---|---|---|---|---|---|")
+for v in variants:
+    s = [load(os.path.join(out, "runs", f"{v}-{i}", "summary.json")) for i in range(1, runs + 1)]
+    s = [x for x in s if x]
+    if not s:
+        print(f"| {v} | failed | | | | | | | | |")
+        continue
+    ate = [x.get("ate_rmse_m") for x in s]
+    parts = {p: [(load(os.path.join(out, "runs", f"{v}-{i}", f"{p}.json")) or {}).get("ate_rmse_m")
+                 for i in range(1, runs + 1)] for p in ("before", "after")}
+    tracked = [x["tracked_ratio"] * 100 for x in s]
+    fps = [x.get("frames_per_second") for x in s]
+    ms = [x["stages"]["tracking_total"]["median_ms"] for x in s if "tracking_total" in x.get("stages", {})]
+    dyn = [x.get("dynamics", {}) for x in s]
+    iou = [d.get("propagation", {}).get("iou_median") for d in dyn if d.get("propagation", {}).get("measured")]
+    stale = [d.get("propagation", {}).get("stale_iou_median") for d in dyn if d.get("propagation", {}).get("measured")]
+    movers = [d.get("mover_frames") for d in dyn if "mover_frames" in d]
+    print(f"| {v} | {fmt(ate)} | {fmt(parts['before'])} | {fmt(parts['after'])} | {fmt(tracked, 1)} % "
+          f"| {fmt(fps, 1)} | {fmt(ms, 1)} | {fmt(iou, 2)} | {fmt(stale, 2)} | {fmt(movers, 0)} |")
+PY
