@@ -783,14 +783,14 @@ MoverResult ObjectHandler::find_movers(const Frame& frame, const SE3& T_c_w,
     const Eigen::Vector3d seen = camera_.unproject(f.keypoint.uv.cast<double>(), f.depth);
     const double limit = opt.mover_displacement + opt.mover_relative * f.depth;
     measured[i] = 1;
-    landmark[i] = e.landmark;
+    if (e.landmark != map::kNoId) landmark[i] = e.landmark;
     if (e.expected_c.z() <= 1e-6) continue;
     // Off in the image as well as in depth: a depth error alone (dark or shiny surfaces, mixed
     // pixels at an edge) moves a point along its ray, not across the image.
     const double scale = frame.features->pyramid->scale[static_cast<std::size_t>(f.keypoint.level)];
     const double pixels =
         (camera_.project(e.expected_c) - f.keypoint.uv.cast<double>()).norm() / scale;
-    if ((seen - e.expected_c).norm() > limit && pixels > opt.mover_pixels) {
+    if (!seed[i] && (seen - e.expected_c).norm() > limit && pixels > opt.mover_pixels) {
       seed[i] = 1;
       ++seeds;
     }

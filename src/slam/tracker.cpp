@@ -69,10 +69,12 @@ class RotationHistogram {
 Tracker::Associations::Associations(const Frame& frame)
     : points(frame.features->points.size()),
       lines(frame.features->lines.size()),
-      planes(frame.features->planes.size()) {}
+      planes(frame.features->planes.size()),
+      from_last(frame.features->points.size(), -1) {}
 
 void Tracker::Associations::clear() {
   std::fill(points.begin(), points.end(), Match{});
+  std::fill(from_last.begin(), from_last.end(), -1);
   std::fill(lines.begin(), lines.end(), LineMatch{});
   std::fill(planes.begin(), planes.end(), PlaneMatch{});
 }
@@ -298,7 +300,7 @@ std::optional<SE3> Tracker::last_frame_pose() const {
 }
 
 int Tracker::search_last_frame(const Frame& frame, const SE3& T_c_w, double radius,
-                               std::vector<Match>& matches) const {
+                               std::vector<Match>& matches, std::vector<int>& from_last) const {
   const auto& last_points = last_->frame.features->points;
   const auto& points = frame.features->points;
   const auto& pyramid = *frame.features->pyramid;
@@ -367,8 +369,10 @@ int Tracker::search_last_frame(const Frame& frame, const SE3& T_c_w, double radi
                     points[j].keypoint.angle_deg);
   for (int j : histogram.inconsistent()) {
     matches[static_cast<std::size_t>(j)] = Match{};
+    source[static_cast<std::size_t>(j)] = -1;
     --count;
   }
+  from_last = source;
   return count;
 }
 
@@ -454,11 +458,13 @@ int Tracker::search_planes(const Frame& frame, const SE3& T_c_w,
 
 bool Tracker::track_last_frame(const Frame& frame, const SE3& prediction, Associations& assoc,
                                SE3& T_c_w) {
-  int n = search_last_frame(frame, prediction, options_.motion_search_radius, assoc.points);
+  int n = search_last_frame(frame, prediction, options_.motion_search_radius, assoc.points,
+                            assoc.from_last);
   int n_lines = search_last_lines(frame, prediction, 1.0, assoc.lines);
   if (n + n_lines < options_.min_motion_matches) {
     assoc.clear();
-    n = search_last_frame(frame, prediction, 2.0 * options_.motion_search_radius, assoc.points);
+    n = search_last_frame(frame, prediction, 2.0 * options_.motion_search_radius, assoc.points,
+                          assoc.from_last);
     n_lines = search_last_lines(frame, prediction, 2.0, assoc.lines);
   }
   int n_planes = 0;
@@ -814,12 +820,19 @@ int Tracker::track_local_map(const Frame& frame, Associations& assoc, SE3& T_c_w
 
 int Tracker::remove_movers(const Frame& frame, Associations& assoc, SE3& T_c_w, int inliers) {
   if (!options_.dynamics.find_movers || !frame.objects) return inliers;
-  // Every matched feature that took part: where its map point (or last-frame point) should be.
+  // Every matched feature that took part: where its map point (or last-frame point) should be;
+  // and every feature with a track: where it was seen up to dynamics.frame_gap frames ago.
   std::vector<MotionEvidence> evidence;
   for (std::size_t i = 0; i < assoc.points.size(); ++i) {
+    if (objects_.point_excluded(i)) continue;
     const Match& m = assoc.points[i];
-    if (!m.active || objects_.point_excluded(i)) continue;
-    evidence.push_back({static_cast<int>(i), T_c_w * m.p_w, m.landmark});
+    if (m.active) evidence.push_back({static_cast<int>(i), T_c_w * m.p_w, m.landmark});
+    const int from = assoc.from_last[i];
+    if (!last_ || from < 0) continue;
+    const auto& track = last_->tracks[static_cast<std::size_t>(from)];
+    if (track.size() >= 2)  // the last frame alone is the match above
+      evidence.push_back(
+          {static_cast<int>(i), T_c_w * track.front(), m.active ? m.landmark : map::kNoId});
   }
   const MoverResult movers = objects_.find_movers(frame, T_c_w, evidence);
   if (!movers.any) return inliers;
@@ -1045,6 +1058,20 @@ void Tracker::remember_last_frame(const Frame& frame, const Associations& assoc,
     }
     const bool moving = objects_.point_excluded(i);
     if (f.has_depth() && !moving) by_depth.emplace_back(f.depth, i);
+  }
+  // Tracks: each point with depth extends the track of the last frame's point it was matched
+  // to, whether or not the match survived as a pose inlier.
+  last.tracks.assign(n, {});
+  const SE3 T_w_c = T_c_w.inverse();
+  const auto window = static_cast<std::size_t>(options_.dynamics.frame_gap) + 1;
+  for (std::size_t i = 0; i < n; ++i) {
+    const auto& f = frame.features->points[i];
+    if (!f.has_depth()) continue;
+    auto& track = last.tracks[i];
+    if (last_ && assoc.from_last[i] >= 0)
+      track = std::move(last_->tracks[static_cast<std::size_t>(assoc.from_last[i])]);
+    if (track.size() >= window) track.erase(track.begin(), track.end() - (window - 1));
+    track.push_back(T_w_c * camera_.unproject(f.keypoint.uv.cast<double>(), f.depth));
   }
   std::sort(by_depth.begin(), by_depth.end());
   const double close = close_depth();

@@ -128,10 +128,12 @@ struct DynamicsOptions {
   double object_depth_gap = 0.3;
 
   // --- movers without a box ---
-  /// Features whose matched map point (or last-frame point), moved by the estimated pose, lands
-  /// farther than mover_displacement + mover_relative * depth metres from where the depth camera
-  /// sees them are seeds of motion. 5 cm + 3 % of the depth is well above Kinect-class depth
-  /// noise (about 1.5 % at 4 m) and the pose's error; a walking person moves 5 cm in 1-2 frames.
+  /// Features whose matched map point (or last-frame point, or the position where the feature's
+  /// chain of frame-to-frame matches saw it up to frame_gap frames ago), moved by the estimated
+  /// pose, lands farther than mover_displacement + mover_relative * depth metres from where the
+  /// depth camera sees them are seeds of motion. 5 cm + 3 % of the depth is well above Kinect-class
+  /// depth noise (about 1.5 % at 4 m) and the pose's error; a walking person moves 5 cm in 1-2
+  /// frames.
   bool find_movers = true;
   double mover_displacement = 0.05;
   double mover_relative = 0.03;

@@ -106,6 +106,10 @@ class Tracker {
     std::vector<Match> points;
     std::vector<LineMatch> lines;
     std::vector<PlaneMatch> planes;
+    /// Per point, the last frame's point it was matched to by search_last_frame (-1: none).
+    /// Kept when the match is later dropped as an outlier: a feature on a moving object is an
+    /// outlier of the pose, and its track is what shows the motion (remove_movers()).
+    std::vector<int> from_last;
 
     explicit Associations(const Frame& frame);
     void clear();
@@ -133,6 +137,11 @@ class Tracker {
     std::vector<std::optional<Eigen::Vector3d>> depth_points;  // camera frame
     std::vector<map::LineId> line_landmarks;
     std::vector<bool> line_has_depth;  // the segment's own 3D endpoints (camera frame) serve
+    /// Per point with depth, where it was seen (world frame, through each frame's tracked pose)
+    /// along its chain of frame-to-frame matches, oldest first, this frame last: at most
+    /// dynamics.frame_gap + 1 positions. Motion over several frames shows a slow mover that a
+    /// single frame's step hides in the depth noise.
+    std::vector<std::vector<Eigen::Vector3d>> tracks;
   };
 
   TrackingOutcome initialize(const Frame& frame);
@@ -144,8 +153,9 @@ class Tracker {
   bool relocalise(const Frame& frame, Associations& assoc, SE3& T_c_w);
   /// Adds local-map matches and re-optimises. Returns the weighted inlier count.
   int track_local_map(const Frame& frame, Associations& assoc, SE3& T_c_w, double radius_factor);
+  /// Matches the last frame's points projected with T_c_w; from_last gets each match's source.
   int search_last_frame(const Frame& frame, const SE3& T_c_w, double radius,
-                        std::vector<Match>& matches) const;
+                        std::vector<Match>& matches, std::vector<int>& from_last) const;
   int search_last_lines(const Frame& frame, const SE3& T_c_w, double distance_factor,
                         std::vector<LineMatch>& matches) const;
   /// Matches the frame's planes to the map's. Call under the map's read lock.
