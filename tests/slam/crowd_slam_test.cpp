@@ -1,0 +1,162 @@
+// The whole system on a rendered crowd (synth::SynthOptions::DynamicObjects::people): people
+// walk through the room (persons 1-4: person 2 passes close enough to fill up to 57 % of the
+// image, persons 3 and 4 are cut by its border), and the last one never gets a box from the
+// oracle detector. The label images
+// give every feature its ground truth, so the exclusion of the movers is measured feature by
+// feature: precision (static features kept) and recall (features on moving people excluded),
+// for the detected people and for the one found without a box.
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <memory>
+#include <string>
+
+#include "mcslam/eval/metrics.hpp"
+#include "mcslam/slam/system.hpp"
+#include "mcslam/synth/objects.hpp"
+#include "mcslam/synth/sequence.hpp"
+
+namespace mcslam {
+namespace {
+
+constexpr int kPeople = 4;
+constexpr int kUndetected = 1;
+
+struct CrowdScene {
+  std::vector<synth::RenderedFrame> frames;
+  std::vector<std::vector<synth::ObjectState>> states;
+  perception::DetectionsFile detections;
+  Trajectory groundtruth;
+  PinholeCamera camera;
+  std::vector<bool> undetected;  ///< per scene object: a person the oracle never reports
+};
+
+/// 300 frames (10 s) of the room with `people` walking (and the sliding chair), Kinect-like depth
+/// noise; everyone starts moving at 1 s. people = 0 is the same room, camera path and chair.
+std::unique_ptr<CrowdScene> render(int people, int undetected) {
+  synth::SynthOptions options;
+  options.frames = 300;
+  options.depth_noise = true;
+  options.seed = 1;
+  options.dynamic.enabled = true;
+  options.dynamic.people = people;
+  options.dynamic.person = people > 0;
+  options.dynamic.undetected_people = undetected;
+  synth::SyntheticSequence seq(options);
+  auto s = std::make_unique<CrowdScene>();
+  for (int i = 0; i < seq.size(); ++i) {
+    s->frames.push_back(seq.frame(i));
+    s->states.push_back(seq.object_states(i, s->frames.back()));
+    s->detections.frames.push_back(seq.oracle_detections(i, s->frames.back()));
+  }
+  s->groundtruth = seq.groundtruth();
+  s->camera = seq.camera();
+  for (const auto& object : seq.scene().objects) s->undetected.push_back(!object.detectable);
+  return s;
+}
+
+const CrowdScene& crowd() {
+  static const std::unique_ptr<CrowdScene> s = render(kPeople, kUndetected);
+  return *s;
+}
+
+struct RunResult {
+  std::vector<slam::FrameResult> frames;
+  double ate = 0.0;
+  int tracked = 0;
+};
+
+RunResult run(const CrowdScene& s) {
+  slam::SystemOptions options;
+  options.sequential = true;
+  slam::System system(s.camera, options);
+  system.set_detection_source(std::make_unique<slam::FileDetectionSource>(s.detections, "oracle"),
+                              true);
+  RunResult r;
+  for (std::size_t i = 0; i < s.frames.size(); ++i) {
+    r.frames.push_back(
+        system.process(s.frames[i].rgb, s.frames[i].depth, s.groundtruth[i].timestamp));
+    r.tracked += r.frames.back().state == slam::TrackingState::kOk ? 1 : 0;
+  }
+  system.finish();
+  r.ate = eval::evaluate(s.groundtruth, system.trajectory()).ate.translation.rmse;
+  return r;
+}
+
+/// Feature counts over the tracked frames, by ground truth (the label under the keypoint, which
+/// must be the same over its 3 x 3 neighbourhood: a keypoint on an object's outline sees both
+/// sides and is left out of both counts).
+struct Counts {
+  int moving = 0, moving_excluded = 0;          // on a moving person (detected or not)
+  int undetected = 0, undetected_excluded = 0;  // on a moving person without a box
+  int fixed = 0, fixed_kept = 0;                // on the room or a static object
+  double recall() const { return moving == 0 ? 0.0 : double(moving_excluded) / moving; }
+  double undetected_recall() const {
+    return undetected == 0 ? 0.0 : double(undetected_excluded) / undetected;
+  }
+  double kept() const { return fixed == 0 ? 0.0 : double(fixed_kept) / fixed; }
+};
+
+Counts count(const CrowdScene& s, const RunResult& r) {
+  Counts c;
+  for (std::size_t i = 0; i < s.frames.size(); ++i) {
+    const slam::FrameResult& f = r.frames[i];
+    if (f.state != slam::TrackingState::kOk || !f.frame_features) continue;
+    const cv::Mat& labels = s.frames[i].labels;
+    const auto& points = f.frame_features->points;
+    for (std::size_t k = 0; k < points.size(); ++k) {
+      const int u = static_cast<int>(std::lround(points[k].keypoint.uv.x()));
+      const int v = static_cast<int>(std::lround(points[k].keypoint.uv.y()));
+      if (u < 1 || v < 1 || u >= labels.cols - 1 || v >= labels.rows - 1) continue;
+      const int label = labels.at<std::int16_t>(v, u);
+      bool uniform = true;
+      for (int dv = -1; dv <= 1; ++dv)
+        for (int du = -1; du <= 1; ++du)
+          uniform = uniform && labels.at<std::int16_t>(v + dv, u + du) == label;
+      if (!uniform) continue;
+      const bool excluded =
+          k < f.point_labels.size() && f.point_labels[k] == slam::FeatureLabel::kDynamic;
+      if (label < 0 || s.states[i][label].motion == synth::MotionKind::kStatic) {
+        ++c.fixed;
+        c.fixed_kept += excluded ? 0 : 1;
+        continue;
+      }
+      const synth::ObjectState& truth = s.states[i][label];
+      if (truth.class_name != "person" || !truth.moving) continue;
+      ++c.moving;
+      c.moving_excluded += excluded ? 1 : 0;
+      if (s.undetected[label]) {
+        ++c.undetected;
+        c.undetected_excluded += excluded ? 1 : 0;
+      }
+    }
+  }
+  return c;
+}
+
+// One test: rendering the two scenes and running the system dominate.
+TEST(CrowdSlam, MovingPeopleAreLeftOutStaticFeaturesKeptAndTheTrajectoryHolds) {
+  const CrowdScene& s = crowd();
+  const RunResult r = run(s);
+  const Counts c = count(s, r);
+  std::printf(
+      "crowd: ATE %.4f m, tracked %d/%zu; moving-person features %d, excluded %.3f; "
+      "undetected person %d, excluded %.3f; static features %d, kept %.3f\n",
+      r.ate, r.tracked, s.frames.size(), c.moving, c.recall(), c.undetected, c.undetected_recall(),
+      c.fixed, c.kept());
+  EXPECT_EQ(r.tracked, static_cast<int>(s.frames.size()));
+  EXPECT_GT(c.moving, 5000);
+  EXPECT_GE(c.recall(), 0.95);
+  EXPECT_GE(c.kept(), 0.85);
+  // The person without a box (person 4, at the image border) is in view on a few frames only;
+  // find_movers() does not find it there (see README, Status: the undetected movers' share is
+  // printed, not asserted). The scene must hold it all the same.
+  EXPECT_GT(c.undetected, 50);
+
+  const RunResult empty = run(*render(0, 0));
+  std::printf("no people: ATE %.4f m, tracked %d\n", empty.ate, empty.tracked);
+  EXPECT_LE(r.ate, 1.5 * empty.ate) << "crowd " << r.ate << " m, no people " << empty.ate << " m";
+}
+
+}  // namespace
+}  // namespace mcslam
