@@ -11,6 +11,29 @@
 namespace mcslam::slam {
 namespace {
 
+/// The candidate whose ORB descriptor is closest to `descriptor`, when within `max_distance`
+/// and clearly better than the second closest (ratio 0.8); -1 otherwise. `best` gets its
+/// distance.
+int unambiguous_match(const features::OrbDescriptor& descriptor, const std::vector<int>& candidates,
+                      const std::vector<features::PointFeature>& points, int max_distance,
+                      int* best = nullptr) {
+  int first = 256, second = 256, index = -1;
+  for (int j : candidates) {
+    const int d =
+        features::hamming_distance(descriptor, points[static_cast<std::size_t>(j)].descriptor);
+    if (d < first) {
+      second = first;
+      first = d;
+      index = j;
+    } else if (d < second) {
+      second = d;
+    }
+  }
+  if (best) *best = first;
+  if (index < 0 || first > max_distance || first > 0.8 * second) return -1;
+  return index;
+}
+
 /// Background features matched per frame to measure its noise (see adaptive_threshold).
 constexpr std::size_t kBackgroundSample = 150;
 /// Frames kept for carrying boxes forward: a detector slower than this many frames a detection
@@ -263,19 +286,9 @@ std::vector<ObjectHandler::Box> ObjectHandler::propagate(
       const double radius = options_.match_radius + options_.propagation_radius * age;
       to.grid.query(static_cast<float>(at->x()), static_cast<float>(at->y()),
                     static_cast<float>(radius), std::max(0, level - 1), level + 1, candidates);
-      int best = 256, second = 256, best_idx = -1;
-      for (int j : candidates) {
-        const int dist = features::hamming_distance(
-            f.descriptor, to.points[static_cast<std::size_t>(j)].descriptor);
-        if (dist < best) {
-          second = best;
-          best = dist;
-          best_idx = j;
-        } else if (dist < second) {
-          second = dist;
-        }
-      }
-      if (best_idx < 0 || best > options_.descriptor_distance || best > 0.8 * second) continue;
+      const int best_idx =
+          unambiguous_match(f.descriptor, candidates, to.points, options_.descriptor_distance);
+      if (best_idx < 0) continue;
       const Eigen::Vector2f shift =
           to.points[static_cast<std::size_t>(best_idx)].keypoint.uv - f.keypoint.uv;
       dx.push_back(shift.x());
@@ -486,19 +499,10 @@ std::vector<MotionMatch> ObjectHandler::match_to_reference(const Frame& frame, c
     const double r = opt.match_radius * pyramid.scale[static_cast<std::size_t>(level)];
     old.grid.query(static_cast<float>(at->x()), static_cast<float>(at->y()), static_cast<float>(r),
                    std::max(0, level - 1), level + 1, candidates);
-    int best = 256, second = 256, best_idx = -1;
-    for (int j : candidates) {
-      const int d = features::hamming_distance(f.descriptor,
-                                               old.points[static_cast<std::size_t>(j)].descriptor);
-      if (d < best) {
-        second = best;
-        best = d;
-        best_idx = j;
-      } else if (d < second) {
-        second = d;
-      }
-    }
-    if (best_idx < 0 || best > opt.descriptor_distance || best > 0.8 * second) continue;
+    int best = 256;
+    const int best_idx =
+        unambiguous_match(f.descriptor, candidates, old.points, opt.descriptor_distance, &best);
+    if (best_idx < 0) continue;
     const auto it = taken.find(best_idx);
     if (it != taken.end()) {
       if (it->second.first <= best) continue;

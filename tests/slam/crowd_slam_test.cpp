@@ -15,6 +15,7 @@
 #include "mcslam/slam/system.hpp"
 #include "mcslam/synth/objects.hpp"
 #include "mcslam/synth/sequence.hpp"
+#include "synthetic_fixture.hpp"
 
 namespace mcslam {
 namespace {
@@ -60,27 +61,12 @@ const CrowdScene& crowd() {
   return *s;
 }
 
-struct RunResult {
-  std::vector<slam::FrameResult> frames;
-  double ate = 0.0;
-  int tracked = 0;
-};
+using RunResult = test::SystemRun;
 
 RunResult run(const CrowdScene& s) {
   slam::SystemOptions options;
   options.sequential = true;
-  slam::System system(s.camera, options);
-  system.set_detection_source(std::make_unique<slam::FileDetectionSource>(s.detections, "oracle"),
-                              true);
-  RunResult r;
-  for (std::size_t i = 0; i < s.frames.size(); ++i) {
-    r.frames.push_back(
-        system.process(s.frames[i].rgb, s.frames[i].depth, s.groundtruth[i].timestamp));
-    r.tracked += r.frames.back().state == slam::TrackingState::kOk ? 1 : 0;
-  }
-  system.finish();
-  r.ate = eval::evaluate(s.groundtruth, system.trajectory()).ate.translation.rmse;
-  return r;
+  return test::run_system(s.frames, s.groundtruth, s.camera, options, &s.detections);
 }
 
 /// Feature counts over the tracked frames, by ground truth (the label under the keypoint, which

@@ -11,6 +11,7 @@
 #include "mcslam/slam/system.hpp"
 #include "mcslam/synth/objects.hpp"
 #include "mcslam/synth/sequence.hpp"
+#include "synthetic_fixture.hpp"
 
 namespace mcslam {
 namespace {
@@ -47,30 +48,15 @@ const DynamicScene& scene() {
   return *s;
 }
 
-struct RunResult {
-  std::vector<slam::FrameResult> frames;
-  double ate = 0.0;
-  int tracked = 0;
-};
+using RunResult = test::SystemRun;
 
 RunResult run(bool boxes, bool constraints) {
   const DynamicScene& s = scene();
   slam::SystemOptions options;
   options.sequential = true;
   options.tracker.dynamics.constraints = constraints;
-  slam::System system(s.camera, options);
-  if (boxes)
-    system.set_detection_source(std::make_unique<slam::FileDetectionSource>(s.detections, "oracle"),
-                                true);
-  RunResult r;
-  for (std::size_t i = 0; i < s.frames.size(); ++i) {
-    r.frames.push_back(
-        system.process(s.frames[i].rgb, s.frames[i].depth, s.groundtruth[i].timestamp));
-    r.tracked += r.frames.back().state == slam::TrackingState::kOk ? 1 : 0;
-  }
-  system.finish();
-  r.ate = eval::evaluate(s.groundtruth, system.trajectory()).ate.translation.rmse;
-  return r;
+  return test::run_system(s.frames, s.groundtruth, s.camera, options,
+                          boxes ? &s.detections : nullptr);
 }
 
 const RunResult& full_run() {

@@ -6,6 +6,8 @@
 #include <tuple>
 #include <vector>
 
+#include "mcslam/eval/metrics.hpp"
+#include "mcslam/slam/system.hpp"
 #include "mcslam/synth/sequence.hpp"
 
 namespace mcslam::test {
@@ -38,6 +40,33 @@ inline const RenderedSequence& rendered_sequence(
     slot->camera = seq.camera();
   }
   return *slot;
+}
+
+/// What a run of the whole system on rendered frames gives.
+struct SystemRun {
+  std::vector<slam::FrameResult> frames;
+  double ate = 0.0;  ///< ATE RMSE (metres) of System::trajectory() against the ground truth
+  int tracked = 0;   ///< frames in state kOk
+};
+
+/// Runs the system on `frames` (timestamps from `groundtruth`), with boxes from `boxes` when
+/// given (each frame waits for its own), and scores the trajectory.
+inline SystemRun run_system(const std::vector<synth::RenderedFrame>& frames,
+                            const Trajectory& groundtruth, const PinholeCamera& camera,
+                            const slam::SystemOptions& options,
+                            const perception::DetectionsFile* boxes) {
+  slam::System system(camera, options);
+  if (boxes)
+    system.set_detection_source(std::make_unique<slam::FileDetectionSource>(*boxes, "oracle"),
+                                true);
+  SystemRun r;
+  for (std::size_t i = 0; i < frames.size(); ++i) {
+    r.frames.push_back(system.process(frames[i].rgb, frames[i].depth, groundtruth[i].timestamp));
+    r.tracked += r.frames.back().state == slam::TrackingState::kOk ? 1 : 0;
+  }
+  system.finish();
+  r.ate = eval::evaluate(groundtruth, system.trajectory()).ate.translation.rmse;
+  return r;
 }
 
 }  // namespace mcslam::test

@@ -1,7 +1,6 @@
 #include "mcslam/synth/sequence.hpp"
 
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <cstdio>
 #include <filesystem>
@@ -12,6 +11,7 @@
 #include <vector>
 
 #include "mcslam/core/error.hpp"
+#include "support/temp_dir.hpp"
 
 namespace mcslam::synth {
 namespace {
@@ -29,20 +29,7 @@ SynthOptions small_options() {
   return o;
 }
 
-class TempDir {
- public:
-  TempDir() : path_(fs::temp_directory_path() / ("mcslam_synth_test_" + std::to_string(getpid()))) {
-    fs::remove_all(path_);
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  const fs::path& path() const { return path_; }
-
- private:
-  fs::path path_;
-};
+using mcslam::test::TempDir;
 
 std::vector<std::vector<std::string>> read_list(const fs::path& path) {
   std::ifstream in(path);
