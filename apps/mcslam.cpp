@@ -1,4 +1,4 @@
-// mcslam command-line interface: run, bench, eval, synth, detect.
+// mcslam command-line interface: run, bench, eval, synth, detect, vocabulary.
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
@@ -10,6 +10,7 @@
 #include "mcslam/app/detect.hpp"
 #include "mcslam/app/faults.hpp"
 #include "mcslam/app/run.hpp"
+#include "mcslam/app/vocabulary.hpp"
 #include "mcslam/core/error.hpp"
 #include "mcslam/eval/bonn.hpp"
 #include "mcslam/eval/metrics.hpp"
@@ -302,6 +303,26 @@ int main(int argc, char** argv) {
       ->check(CLI::NonNegativeNumber);
   detect_cmd->add_flag("--quiet,-q", quiet, "No progress bar and no summary");
 
+  mcslam::app::VocabularyRequest vocabulary;
+  auto* vocabulary_cmd = cli.add_subcommand(
+      "vocabulary", "Train a bag-of-words vocabulary from the ORB features of sequences");
+  vocabulary_cmd->add_option("sequences", vocabulary.sequences, "Sequence folders (TUM layout)")
+      ->required();
+  vocabulary_cmd->add_option("--output,-o", vocabulary.output, "Vocabulary file to write")
+      ->required();
+  vocabulary_cmd->add_option("--every", vocabulary.every,
+                             "Use every N-th image of each sequence (default 5)");
+  vocabulary_cmd->add_option("--max-images", vocabulary.max_images,
+                             "At most N images per sequence (default 0: all)");
+  vocabulary_cmd->add_option("--branching", vocabulary.options.branching,
+                             "Children per node, 2-255 (default 10)");
+  vocabulary_cmd->add_option("--depth", vocabulary.options.depth,
+                             "Levels below the root, 1-16 (default 5)");
+  vocabulary_cmd->add_option("--iterations", vocabulary.options.iterations,
+                             "k-majority iterations per node (default 10)");
+  vocabulary_cmd->add_option("--seed", vocabulary.options.seed, "Seed of the clustering");
+  vocabulary_cmd->add_flag("--quiet,-q", quiet, "No progress and no summary");
+
   CLI11_PARSE(cli, argc, argv);
   try {
     if (run_cmd->parsed()) {
@@ -329,6 +350,21 @@ int main(int argc, char** argv) {
     if (detect_cmd->parsed()) {
       detect.progress = !quiet && isatty(fileno(stderr));
       return detect_command(detect, quiet);
+    }
+    if (vocabulary_cmd->parsed()) {
+      vocabulary.progress = !quiet && isatty(fileno(stderr));
+      const nlohmann::json summary = mcslam::app::train_vocabulary(vocabulary);
+      if (!quiet)
+        std::cout << "vocabulary: " << summary["words"].get<int>() << " words ("
+                  << summary["branching"].get<int>() << "^" << summary["depth"].get<int>()
+                  << " at most), " << summary["nodes"].get<int>() << " nodes, from "
+                  << summary["descriptors"].get<std::size_t>() << " descriptors of "
+                  << summary["images"].get<std::size_t>() << " images; "
+                  << summary["bytes"].get<std::size_t>() << " bytes in " << vocabulary.output
+                  << " (id " << summary["id"].get<std::string>() << "); extraction "
+                  << static_cast<int>(summary["extract_seconds"].get<double>()) << " s, training "
+                  << static_cast<int>(summary["train_seconds"].get<double>()) << " s\n";
+      return 0;
     }
     if (eval_cmd->parsed()) return eval_command(gt_path, est_path, bonn, json, max_dt);
     if (synth_cmd->parsed()) {
