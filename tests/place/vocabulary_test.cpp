@@ -15,55 +15,16 @@
 #include <vector>
 
 #include "mcslam/core/error.hpp"
+#include "place/descriptors.hpp"
 #include "support/temp_dir.hpp"
 
 namespace mcslam::place {
 namespace {
 
 using features::OrbDescriptor;
-
-/// `count` random 256-bit prototypes (fixed seed).
-std::vector<OrbDescriptor> prototypes(int count, std::uint64_t seed) {
-  std::mt19937_64 rng(seed);
-  std::vector<OrbDescriptor> out(static_cast<std::size_t>(count));
-  for (auto& d : out)
-    for (auto& b : d.bytes) b = static_cast<std::uint8_t>(rng() & 0xFF);
-  return out;
-}
-
-/// A copy of `d` with `flips` distinct random bits flipped.
-OrbDescriptor noisy(const OrbDescriptor& d, int flips, std::mt19937_64& rng) {
-  OrbDescriptor out = d;
-  std::set<int> bits;
-  std::uniform_int_distribution<int> bit(0, 255);
-  while (static_cast<int>(bits.size()) < flips) bits.insert(bit(rng));
-  for (int b : bits)
-    out.bytes[static_cast<std::size_t>(b / 8)] ^= static_cast<std::uint8_t>(1u << (b % 8));
-  return out;
-}
-
-/// An "image": `per` noisy views (up to 12 bits off) of each of the prototypes in [first, last).
-std::vector<OrbDescriptor> image(const std::vector<OrbDescriptor>& protos, int first, int last,
-                                 int per, std::mt19937_64& rng) {
-  std::vector<OrbDescriptor> out;
-  std::uniform_int_distribution<int> flips(0, 12);
-  for (int p = first; p < last; ++p)
-    for (int k = 0; k < per; ++k)
-      out.push_back(noisy(protos[static_cast<std::size_t>(p)], flips(rng), rng));
-  return out;
-}
-
-/// 100 prototypes; training image i shows prototypes [10 (i % 10), 10 (i % 10) + 10): ten
-/// "places" of ten features each, seen twice over 20 images.
-struct Training {
-  std::vector<OrbDescriptor> protos = prototypes(100, 7);
-  std::vector<std::vector<OrbDescriptor>> images;
-  Training() {
-    std::mt19937_64 rng(11);
-    for (int i = 0; i < 20; ++i)
-      images.push_back(image(protos, 10 * (i % 10), 10 * (i % 10) + 10, 4, rng));
-  }
-};
+using test::image;
+using test::noisy;
+using test::Training;
 
 VocabularyOptions small_options() {
   VocabularyOptions o;
@@ -181,7 +142,7 @@ TEST(Vocabulary, DirectIndexHoldsEveryFeatureOnceGroupedByNode) {
 
 TEST(VocabularyFile, RoundTripKeepsTheTreeWeightsAndId) {
   const Vocabulary& voc = trained();
-  const test::TempDir dir("mcslam_vocabulary_test");
+  const mcslam::test::TempDir dir("mcslam_vocabulary_test");
   const std::string path = dir.file("voc.bin");
   voc.save(path);
   const Vocabulary back = Vocabulary::load(path);
@@ -198,7 +159,7 @@ TEST(VocabularyFile, RoundTripKeepsTheTreeWeightsAndId) {
 
 TEST(VocabularyFile, BadFilesAreOneClearError) {
   const Vocabulary& voc = trained();
-  const test::TempDir dir("mcslam_vocabulary_test");
+  const mcslam::test::TempDir dir("mcslam_vocabulary_test");
   const std::string good = dir.file("voc.bin");
   voc.save(good);
   std::string bytes;
@@ -209,10 +170,10 @@ TEST(VocabularyFile, BadFilesAreOneClearError) {
   const auto expect_error = [&](const std::string& name, const std::string& content,
                                 const std::string& problem) {
     const std::string path = dir.write(name, content);
-    test::expect_input_error([&] { Vocabulary::load(path); }, {path, problem});
+    mcslam::test::expect_input_error([&] { Vocabulary::load(path); }, {path, problem});
   };
-  test::expect_input_error([&] { Vocabulary::load(dir.file("missing.bin")); },
-                           {"missing.bin", "cannot open"});
+  mcslam::test::expect_input_error([&] { Vocabulary::load(dir.file("missing.bin")); },
+                                   {"missing.bin", "cannot open"});
   expect_error("empty.bin", "", "bad magic");
   expect_error("foreign.bin", "PK\x03\x04 not a vocabulary at all, just some bytes", "bad magic");
   expect_error("truncated.bin", bytes.substr(0, bytes.size() / 2), "truncated");
