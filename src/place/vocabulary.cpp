@@ -244,21 +244,23 @@ void Vocabulary::finish() {
   }
 }
 
+NodeId Vocabulary::closest_child(NodeId parent, const OrbDescriptor& descriptor) const {
+  const Node& n = nodes_[parent];
+  NodeId best = n.first_child;
+  int best_d = 257;
+  for (std::uint32_t c = 0; c < n.children; ++c) {
+    const int d = hamming_distance(descriptor, nodes_[n.first_child + c].descriptor);
+    if (d < best_d) {
+      best_d = d;
+      best = n.first_child + c;
+    }
+  }
+  return best;
+}
+
 WordId Vocabulary::word_of(const OrbDescriptor& descriptor) const {
   NodeId id = 0;
-  while (nodes_[id].children > 0) {
-    const Node& n = nodes_[id];
-    NodeId best = n.first_child;
-    int best_d = 257;
-    for (std::uint32_t c = 0; c < n.children; ++c) {
-      const int d = hamming_distance(descriptor, nodes_[n.first_child + c].descriptor);
-      if (d < best_d) {
-        best_d = d;
-        best = n.first_child + c;
-      }
-    }
-    id = best;
-  }
+  while (nodes_[id].children > 0) id = closest_child(id, descriptor);
   return nodes_[id].word;
 }
 
@@ -271,17 +273,7 @@ BowImage Vocabulary::transform(const std::vector<OrbDescriptor>& descriptors, in
     NodeId id = 0;
     NodeId at_level = 0;
     while (nodes_[id].children > 0) {
-      const Node& n = nodes_[id];
-      NodeId best = n.first_child;
-      int best_d = 257;
-      for (std::uint32_t c = 0; c < n.children; ++c) {
-        const int d = hamming_distance(descriptors[i], nodes_[n.first_child + c].descriptor);
-        if (d < best_d) {
-          best_d = d;
-          best = n.first_child + c;
-        }
-      }
-      id = best;
+      id = closest_child(id, descriptors[i]);
       if (nodes_[id].level <= direct_level) at_level = id;
     }
     out.direct[at_level].push_back(static_cast<int>(i));

@@ -44,12 +44,6 @@ class SynthCli : public testing::Test {
         root_ / ("stderr_" + std::to_string(n) + ".txt"));
   }
 
-  static int lines_in(const std::string& text) {
-    int lines = 0;
-    for (char c : text) lines += c == '\n';
-    return lines;
-  }
-
   fs::path root_;
   int runs_ = 0;
 };
@@ -99,7 +93,7 @@ TEST_F(SynthCli, BadPeopleCountsAreOneErrorLine) {
   for (const Case& c : cases) {
     const CliResult r = synth("bad", std::string(kSmall) + " " + c.args);
     EXPECT_EQ(r.exit_code, 1) << c.args << "\n" << r;
-    EXPECT_EQ(lines_in(r.err), 1) << c.args << "\n" << r;
+    EXPECT_EQ(mcslam::test::count_lines(r.err), 1) << c.args << "\n" << r;
     EXPECT_NE(r.err.find("mcslam: error: "), std::string::npos) << r;
     EXPECT_NE(r.err.find(c.expected), std::string::npos) << c.args << "\n" << r;
     EXPECT_FALSE(fs::exists(root_ / "bad" / "rgb.txt")) << c.args << ": nothing written";

@@ -43,12 +43,6 @@ class VocabularyCli : public testing::Test {
                                      dir_ / ("stderr_" + std::to_string(n) + ".txt"));
   }
 
-  static int lines_in(const std::string& text) {
-    int lines = 0;
-    for (char c : text) lines += c == '\n';
-    return lines;
-  }
-
   mcslam::test::TempDir dir_{"mcslam_vocabulary_cli_test"};
   fs::path seq_ = dir_ / "room";
   int runs_ = 0;
@@ -76,7 +70,7 @@ TEST_F(VocabularyCli, BadInputIsOneErrorLine) {
     const CliResult r = vocabulary(args);
     EXPECT_EQ(r.exit_code, 1) << args << "\n" << r;
     EXPECT_FALSE(r.crashed);
-    EXPECT_EQ(lines_in(r.err), 1) << r.err;
+    EXPECT_EQ(mcslam::test::count_lines(r.err), 1) << r.err;
     EXPECT_NE(r.err.find(named), std::string::npos) << r.err;
   };
   expect_error(quote(dir_.file("missing")) + " -o " + out, "missing");

@@ -43,6 +43,13 @@ inline std::ostream& operator<<(std::ostream& os, const CliResult& r) {
             << r.err;
 }
 
+/// Number of lines (newline characters) in a program's output.
+inline int count_lines(const std::string& text) {
+  int lines = 0;
+  for (char c : text) lines += c == '\n';
+  return lines;
+}
+
 /// Runs `<exe> <args>` (args already quoted), stdout and stderr going to the given files, and
 /// returns the exit code and both outputs.
 inline CliResult run_command(const std::string& exe, const std::string& args,

@@ -95,6 +95,8 @@ class Vocabulary {
     int level = 0;        // 0 for the root
   };
   Vocabulary() = default;
+  /// The child of `parent` (which has children) closest to `descriptor`.
+  NodeId closest_child(NodeId parent, const features::OrbDescriptor& descriptor) const;
   std::string serialise_body() const;
   void finish();  // words_, levels and id_ from nodes_
 
