@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Fuzzes mcslam's parsers with libFuzzer (clang, AddressSanitizer + UBSan): the sequence lists,
-# the settings files, TUM trajectories and detections files. Each fuzzer starts from its seed
+# the settings files, TUM trajectories, detections files and vocabulary files. Each fuzzer starts from its seed
 # corpus in fuzz/corpus/<name>/ (kept in the repository) and runs for SECONDS (default 60); new
 # inputs go to build-fuzz/corpus/<name>/, crashes to build-fuzz/artifacts/. Exit 1 on a crash.
 # SECONDS 0 replays the seed corpora once (every input, including the ones that once crashed or
@@ -11,7 +11,7 @@ cd "$(dirname "$0")/.."
 seconds="${1:-60}"
 shift || true
 names=("$@")
-[ ${#names[@]} -gt 0 ] || names=(sequence_lists settings trajectory detections)
+[ ${#names[@]} -gt 0 ] || names=(sequence_lists settings trajectory detections vocabulary)
 bash scripts/install-deps.sh > /dev/null
 cmake --preset fuzz > /dev/null
 cmake --build --preset fuzz -j "$(nproc)"

@@ -29,12 +29,7 @@ constexpr int kMaxBranching = 255;  // a node's child count is one byte in the f
 constexpr int kMaxDepth = 16;
 
 std::uint64_t fnv1a(const char* data, std::size_t size) {
-  std::uint64_t h = 14695981039346656037ULL;
-  for (std::size_t i = 0; i < size; ++i) {
-    h ^= static_cast<unsigned char>(data[i]);
-    h *= 1099511628211ULL;
-  }
-  return h;
+  return file_checksum(std::string_view(data, size));
 }
 
 template <typename T>
@@ -141,6 +136,15 @@ std::vector<std::vector<int>> cluster(const std::vector<OrbDescriptor>& all,
 }
 
 }  // namespace
+
+std::uint64_t file_checksum(std::string_view bytes) {
+  std::uint64_t h = 14695981039346656037ULL;
+  for (const char c : bytes) {
+    h ^= static_cast<unsigned char>(c);
+    h *= 1099511628211ULL;
+  }
+  return h;
+}
 
 std::optional<std::string> VocabularyOptions::check() const {
   if (branching < 2 || branching > kMaxBranching)

@@ -20,6 +20,7 @@
 #include <map>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -52,6 +53,9 @@ struct BowImage {
   BowVector bow;
   FeatureVector direct;
 };
+
+/// The file format's checksum: FNV-1a, 64 bits, of `bytes`.
+std::uint64_t file_checksum(std::string_view bytes);
 
 /// L1 score of two L1-normalised vectors: 1 for identical ones, 0 when they share no word.
 double score(const BowVector& a, const BowVector& b);
