@@ -23,14 +23,7 @@ namespace {
 constexpr int kPeople = 4;
 constexpr int kUndetected = 1;
 
-struct CrowdScene {
-  std::vector<synth::RenderedFrame> frames;
-  std::vector<std::vector<synth::ObjectState>> states;
-  perception::DetectionsFile detections;
-  Trajectory groundtruth;
-  PinholeCamera camera;
-  std::vector<bool> undetected;  ///< per scene object: a person the oracle never reports
-};
+using CrowdScene = test::DynamicSequence;
 
 /// 300 frames (10 s) of the room with `people` walking (and the sliding chair), Kinect-like depth
 /// noise; everyone starts moving at 1 s. people = 0 is the same room, camera path and chair.
@@ -43,17 +36,7 @@ std::unique_ptr<CrowdScene> render(int people, int undetected) {
   options.dynamic.people = people;
   options.dynamic.person = people > 0;
   options.dynamic.undetected_people = undetected;
-  synth::SyntheticSequence seq(options);
-  auto s = std::make_unique<CrowdScene>();
-  for (int i = 0; i < seq.size(); ++i) {
-    s->frames.push_back(seq.frame(i));
-    s->states.push_back(seq.object_states(i, s->frames.back()));
-    s->detections.frames.push_back(seq.oracle_detections(i, s->frames.back()));
-  }
-  s->groundtruth = seq.groundtruth();
-  s->camera = seq.camera();
-  for (const auto& object : seq.scene().objects) s->undetected.push_back(!object.detectable);
-  return s;
+  return test::render_dynamic(options);
 }
 
 const CrowdScene& crowd() {

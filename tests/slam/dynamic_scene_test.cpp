@@ -16,35 +16,20 @@
 namespace mcslam {
 namespace {
 
-struct DynamicScene {
-  synth::SynthOptions options;
-  std::vector<synth::RenderedFrame> frames;
-  std::vector<std::vector<synth::ObjectState>> states;
-  perception::DetectionsFile detections;
-  Trajectory groundtruth;
-  PinholeCamera camera;
-};
+using DynamicScene = test::DynamicSequence;
 
 /// Rendered once per process: 300 frames (10 s; the person is in view for about half of them),
 /// Kinect-like depth noise; the objects start moving at 1 s. The same sequence as
 /// scripts/bench_dynamic.sh's dyn_s1_default.
 const DynamicScene& scene() {
-  static std::unique_ptr<DynamicScene> s;
-  if (!s) {
-    s = std::make_unique<DynamicScene>();
-    s->options.frames = 300;
-    s->options.depth_noise = true;
-    s->options.seed = 1;
-    s->options.dynamic.enabled = true;
-    synth::SyntheticSequence seq(s->options);
-    for (int i = 0; i < seq.size(); ++i) {
-      s->frames.push_back(seq.frame(i));
-      s->states.push_back(seq.object_states(i, s->frames.back()));
-      s->detections.frames.push_back(seq.oracle_detections(i, s->frames.back()));
-    }
-    s->groundtruth = seq.groundtruth();
-    s->camera = seq.camera();
-  }
+  static const std::unique_ptr<DynamicScene> s = [] {
+    synth::SynthOptions options;
+    options.frames = 300;
+    options.depth_noise = true;
+    options.seed = 1;
+    options.dynamic.enabled = true;
+    return test::render_dynamic(options);
+  }();
   return *s;
 }
 

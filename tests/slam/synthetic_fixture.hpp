@@ -8,6 +8,7 @@
 
 #include "mcslam/eval/metrics.hpp"
 #include "mcslam/slam/system.hpp"
+#include "mcslam/synth/objects.hpp"
 #include "mcslam/synth/sequence.hpp"
 
 namespace mcslam::test {
@@ -40,6 +41,33 @@ inline const RenderedSequence& rendered_sequence(
     slot->camera = seq.camera();
   }
   return *slot;
+}
+
+/// A rendered dynamic scene with its per-frame ground truth and oracle boxes.
+struct DynamicSequence {
+  synth::SynthOptions options;
+  std::vector<synth::RenderedFrame> frames;
+  std::vector<std::vector<synth::ObjectState>> states;  ///< per frame, per scene object
+  perception::DetectionsFile detections;                ///< the oracle's boxes
+  Trajectory groundtruth;
+  PinholeCamera camera;
+  std::vector<bool> undetected;  ///< per scene object: never reported by the oracle
+};
+
+/// Renders every frame of `options` (a dynamic scene) with its object states and oracle boxes.
+inline std::unique_ptr<DynamicSequence> render_dynamic(const synth::SynthOptions& options) {
+  auto s = std::make_unique<DynamicSequence>();
+  s->options = options;
+  synth::SyntheticSequence seq(options);
+  for (int i = 0; i < seq.size(); ++i) {
+    s->frames.push_back(seq.frame(i));
+    s->states.push_back(seq.object_states(i, s->frames.back()));
+    s->detections.frames.push_back(seq.oracle_detections(i, s->frames.back()));
+  }
+  s->groundtruth = seq.groundtruth();
+  s->camera = seq.camera();
+  for (const auto& object : seq.scene().objects) s->undetected.push_back(!object.detectable);
+  return s;
 }
 
 /// What a run of the whole system on rendered frames gives.
