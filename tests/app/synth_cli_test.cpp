@@ -37,15 +37,11 @@ class SynthCli : public testing::Test {
 
   /// Runs `mcslam synth --output <root>/<name> <args> -q`.
   CliResult synth(const std::string& name, const std::string& args) {
-    const int n = runs_++;
     return mcslam::test::run_command(
-        MCSLAM_EXE, "synth --output " + quote((root_ / name).string()) + " " + args + " -q",
-        root_ / ("stdout_" + std::to_string(n) + ".txt"),
-        root_ / ("stderr_" + std::to_string(n) + ".txt"));
+        MCSLAM_EXE, "synth --output " + quote((root_ / name).string()) + " " + args + " -q", root_);
   }
 
   fs::path root_;
-  int runs_ = 0;
 };
 
 constexpr const char* kSmall = "--frames 4 --width 160 --height 120";

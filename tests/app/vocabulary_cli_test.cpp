@@ -37,15 +37,11 @@ class VocabularyCli : public testing::Test {
   }
 
   CliResult vocabulary(const std::string& args) {
-    const int n = runs_++;
-    return mcslam::test::run_command(MCSLAM_EXE, "vocabulary " + args,
-                                     dir_ / ("stdout_" + std::to_string(n) + ".txt"),
-                                     dir_ / ("stderr_" + std::to_string(n) + ".txt"));
+    return mcslam::test::run_command(MCSLAM_EXE, "vocabulary " + args, dir_.path());
   }
 
   mcslam::test::TempDir dir_{"mcslam_vocabulary_cli_test"};
   fs::path seq_ = dir_ / "room";
-  int runs_ = 0;
 };
 
 TEST_F(VocabularyCli, TrainsALoadableDeterministicVocabulary) {

@@ -3,6 +3,7 @@
 
 #include <sys/wait.h>
 
+#include <atomic>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -64,6 +65,15 @@ inline CliResult run_command(const std::string& exe, const std::string& args,
   r.out = read_file(out);
   r.err = read_file(err);
   return r;
+}
+
+/// The same, with the outputs in `dir` as stdout_<n>.txt and stderr_<n>.txt (n counts the calls
+/// of this process, so that every run keeps its own).
+inline CliResult run_command(const std::string& exe, const std::string& args,
+                             const std::filesystem::path& dir) {
+  static std::atomic<int> runs{0};
+  const std::string n = std::to_string(runs++);
+  return run_command(exe, args, dir / ("stdout_" + n + ".txt"), dir / ("stderr_" + n + ".txt"));
 }
 
 }  // namespace mcslam::test
