@@ -268,12 +268,14 @@ WordId Vocabulary::word_of(const OrbDescriptor& descriptor) const {
   return nodes_[id].word;
 }
 
-BowImage Vocabulary::transform(const std::vector<OrbDescriptor>& descriptors, int levels_up) const {
+BowImage Vocabulary::transform(const std::vector<OrbDescriptor>& descriptors, int levels_up,
+                               const std::vector<std::uint8_t>& skip) const {
   BowImage out;
   if (words_.empty()) return out;
   const int direct_level = std::max(0, depth_ - std::max(0, levels_up));
   std::map<WordId, double> bow;
   for (std::size_t i = 0; i < descriptors.size(); ++i) {
+    if (i < skip.size() && skip[i] != 0) continue;
     NodeId id = 0;
     NodeId at_level = 0;
     while (nodes_[id].children > 0) {

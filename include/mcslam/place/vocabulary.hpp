@@ -77,8 +77,10 @@ class Vocabulary {
   WordId word_of(const features::OrbDescriptor& descriptor) const;
   /// The BoW vector of an image, and its direct index at `levels_up` levels above the words
   /// (clamped to the root).
-  BowImage transform(const std::vector<features::OrbDescriptor>& descriptors,
-                     int levels_up = 2) const;
+  /// Descriptors whose entry in `skip` is non-zero (features of moving objects) take no part:
+  /// they add no weight and are not in the direct index; indices stay those of `descriptors`.
+  BowImage transform(const std::vector<features::OrbDescriptor>& descriptors, int levels_up = 2,
+                     const std::vector<std::uint8_t>& skip = {}) const;
 
   int words() const { return static_cast<int>(words_.size()); }
   int nodes() const { return static_cast<int>(nodes_.size()); }
