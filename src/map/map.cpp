@@ -91,6 +91,7 @@ KeyFrameId Map::add_keyframe(KeyFrame keyframe) {
   keyframe.landmarks.assign(keyframe.features->points.size(), kNoId);
   keyframe.line_landmarks.assign(keyframe.features->lines.size(), kNoId);
   keyframe.plane_landmarks.assign(keyframe.features->planes.size(), kNoId);
+  if (database_ && keyframe.bow) database_->add(id, keyframe.bow->bow);
   keyframes_.emplace(id, std::move(keyframe));
   last_keyframe_ = id;
   ++version_;
@@ -181,9 +182,31 @@ void Map::erase_keyframe(KeyFrameId id) {
     if (p != kNoId) erase_plane_observation(p, id);
   for (const auto& [other, weight] : kit->second.covisibility)
     if (auto it = keyframes_.find(other); it != keyframes_.end()) it->second.covisibility.erase(id);
+  for (KeyFrameId other : kit->second.loop_edges)
+    if (auto it = keyframes_.find(other); it != keyframes_.end()) it->second.loop_edges.erase(id);
+  if (database_) database_->erase(id);
   // Frames referenced to keyframes whose parent was this one keep resolving through the chain.
   erased_keyframes_[id] = erased;
   keyframes_.erase(kit);
+  ++version_;
+}
+
+void Map::set_plane_hull(PlaneId id, std::vector<Eigen::Vector3d> hull_w) {
+  if (auto it = planes_.find(id); it != planes_.end()) it->second.hull = std::move(hull_w);
+}
+
+void Map::enable_database(int words) {
+  database_.emplace(words);
+  for (const auto& [id, kf] : keyframes_)
+    if (kf.bow) database_->add(id, kf.bow->bow);
+}
+
+void Map::add_loop_edge(KeyFrameId a, KeyFrameId b) {
+  auto ia = keyframes_.find(a);
+  auto ib = keyframes_.find(b);
+  if (ia == keyframes_.end() || ib == keyframes_.end() || a == b) return;
+  ia->second.loop_edges.insert(b);
+  ib->second.loop_edges.insert(a);
   ++version_;
 }
 

@@ -14,12 +14,15 @@
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <set>
 #include <shared_mutex>
 #include <unordered_map>
 #include <vector>
 
 #include "mcslam/core/se3.hpp"
 #include "mcslam/features/frame_features.hpp"
+#include "mcslam/place/database.hpp"
+#include "mcslam/place/vocabulary.hpp"
 
 namespace mcslam::map {
 
@@ -52,6 +55,11 @@ struct KeyFrame {
   }
   /// Covisibility: number of landmarks shared with each other keyframe (only weights > 0).
   std::unordered_map<KeyFrameId, int> covisibility;
+  /// Bag of words of the static points (moving objects' features take no part), with the direct
+  /// index; null without a vocabulary.
+  std::shared_ptr<const place::BowImage> bow;
+  /// Keyframes this one closed a loop with (both ends hold the edge).
+  std::set<KeyFrameId> loop_edges;
 
   SE3 T_w_c() const { return T_c_w.inverse(); }
   Eigen::Vector3d camera_center() const { return T_c_w.inverse().translation(); }
@@ -148,8 +156,16 @@ class Map {
   std::optional<SE3> keyframe_pose_T_c_w(KeyFrameId id) const;
   KeyFrameId last_keyframe_id() const { return last_keyframe_; }
   std::uint64_t version() const { return version_; }
+  /// The keyframe database (inverted index of the keyframes' bags of words); null until
+  /// enable_database(). Keyframes with a bag of words are in it while they are in the map.
+  const place::Database* database() const { return database_ ? &*database_ : nullptr; }
 
   // --- writes (local mapper only) ---
+  /// Starts the keyframe database for a vocabulary of `words` words (keyframes already in the
+  /// map with a bag of words are added).
+  void enable_database(int words);
+  /// Records a loop closed between two keyframes (an edge of the essential graph).
+  void add_loop_edge(KeyFrameId a, KeyFrameId b);
   /// Keeps keyframe.id when it is set and unused (the tracker numbers keyframes); otherwise
   /// assigns the next free id. Returns the id.
   KeyFrameId add_keyframe(KeyFrame keyframe);
@@ -190,6 +206,8 @@ class Map {
   void add_plane_observation(PlaneId plane, KeyFrameId keyframe, int plane_index);
   void erase_plane_observation(PlaneId plane, KeyFrameId keyframe);
   void set_plane(PlaneId id, const Eigen::Vector4d& plane_w);
+  /// Replaces the plane's extent (a map correction moved it).
+  void set_plane_hull(PlaneId id, std::vector<Eigen::Vector3d> hull_w);
   /// Adds observed points (world) of the plane to its extent: the hull of the old hull and them,
   /// both projected onto the plane.
   void extend_plane(PlaneId id, const std::vector<Eigen::Vector3d>& points_w);
@@ -204,6 +222,7 @@ class Map {
   std::unordered_map<LineId, MapLine> lines_;
   std::unordered_map<PlaneId, MapPlane> planes_;
   std::unordered_map<KeyFrameId, ErasedKeyFrame> erased_keyframes_;
+  std::optional<place::Database> database_;
   KeyFrameId next_keyframe_id_ = 0;
   PointId next_point_id_ = 0;
   LineId next_line_id_ = 0;
