@@ -88,6 +88,11 @@ std::optional<std::string> SynthOptions::check() const {
   if (frames <= 0) return "frames must be positive (got " + std::to_string(frames) + ")";
   if (!finite(fps) || fps <= 0.0) return "fps must be positive";
   if (!finite(speed) || speed < 0.0) return "speed must be finite and >= 0";
+  if (!finite(loop_period) || loop_period <= 0.0) return "loop_period must be positive";
+  if (!finite(room_scale) || room_scale < 1.0 || room_scale > 4.0)
+    return "room_scale must be in [1, 4]";
+  if (path == CameraPath::kOrbit && room_scale < 2.0)
+    return "the orbit path needs room_scale >= 2 (it goes 3.5 m from the centre)";
   if (!finite(rgb_noise_sigma) || rgb_noise_sigma < 0.0)
     return "rgb_noise_sigma must be finite and >= 0";
   if (!finite(readout_time) || readout_time < 0.0 || readout_time > 0.1)
@@ -169,6 +174,10 @@ double Scene::clearance(const Eigen::Vector3d& p_w, double t) const {
 Scene make_room_scene(const SynthOptions& options) {
   require_valid(options);
   Scene scene;
+  for (int axis = 0; axis < 2; ++axis) {
+    scene.room_min[axis] *= options.room_scale;
+    scene.room_max[axis] *= options.room_scale;
+  }
   const Eigen::Vector3d lo = scene.room_min, hi = scene.room_max;
   const Eigen::Vector3d size = hi - lo;
   const Eigen::Vector3d ex = Eigen::Vector3d::UnitX(), ey = Eigen::Vector3d::UnitY(),
@@ -275,13 +284,62 @@ SE3 camera_pose_at(double t, double speed) {
   return SE3(R_w_c, position);
 }
 
+SE3 loop_pose_at(double t, double speed, double period) {
+  const double a = 2.0 * M_PI * speed * t / period;  // lap angle
+  const Eigen::Vector3d position(0.7 * std::cos(a), 0.6 * std::sin(a),
+                                 1.4 + 0.05 * std::sin(3.0 * a));
+  // Heading: outwards (the lap angle), with a wobble that repeats every lap.
+  const double yaw = a + 8.0 * kDeg * std::sin(2.0 * a);
+  const double pitch = (12.0 + 4.0 * std::sin(5.0 * a)) * kDeg;  // down
+  const double roll = 3.0 * kDeg * std::sin(4.0 * a + 0.5);
+  Eigen::Matrix3d R_w_c0;  // looking along world +x, upright (as camera_pose_at)
+  R_w_c0 << 0.0, 0.0, 1.0, -1.0, 0.0, 0.0, 0.0, -1.0, 0.0;
+  const Eigen::Matrix3d R_w_c =
+      (Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()) *
+       Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitY()))
+          .toRotationMatrix() *
+      R_w_c0 * Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  return SE3(R_w_c, position);
+}
+
+SE3 orbit_pose_at(double t, double speed, double period) {
+  const double a = 2.0 * M_PI * speed * t / period;
+  const Eigen::Vector3d position(3.5 * std::cos(a), 3.0 * std::sin(a),
+                                 1.5 + 0.05 * std::sin(3.0 * a));
+  const Eigen::Vector3d target(0.3, 0.0, 0.6);
+  // z along the view direction, x to the right (horizontal), y down; then a small wobble.
+  const Eigen::Vector3d z = (target - position).normalized();
+  const Eigen::Vector3d x = z.cross(Eigen::Vector3d::UnitZ()).normalized();
+  const Eigen::Vector3d y = z.cross(x);
+  Eigen::Matrix3d R_w_c;
+  R_w_c << x, y, z;
+  const Eigen::Matrix3d wobble =
+      (Eigen::AngleAxisd(6.0 * kDeg * std::sin(2.0 * a), Eigen::Vector3d::UnitY()) *
+       Eigen::AngleAxisd(3.0 * kDeg * std::sin(5.0 * a), Eigen::Vector3d::UnitX()) *
+       Eigen::AngleAxisd(2.0 * kDeg * std::sin(4.0 * a + 0.5), Eigen::Vector3d::UnitZ()))
+          .toRotationMatrix();
+  return SE3(Eigen::Matrix3d(R_w_c * wobble), position);
+}
+
+SE3 path_pose_at(const SynthOptions& options, double t) {
+  switch (options.path) {
+    case CameraPath::kLoop:
+      return loop_pose_at(t, options.speed, options.loop_period);
+    case CameraPath::kOrbit:
+      return orbit_pose_at(t, options.speed, options.loop_period);
+    case CameraPath::kWander:
+      break;
+  }
+  return camera_pose_at(t, options.speed);
+}
+
 Trajectory camera_path(const SynthOptions& options) {
   require_valid(options);
   Trajectory path;
   path.reserve(options.frames);
   for (int i = 0; i < options.frames; ++i) {
     const double t = i / options.fps;
-    path.push_back({1.0 + t, camera_pose_at(t, options.speed)});
+    path.push_back({1.0 + t, path_pose_at(options, t)});
   }
   return path;
 }

@@ -164,8 +164,8 @@ SyntheticSequence::SyntheticSequence(const SynthOptions& options)
 RenderedFrame SyntheticSequence::frame(int i) const {
   if (i < 0 || i >= size()) throw std::out_of_range("SyntheticSequence::frame: bad index");
   if (options_.readout_time > 0.0) {
-    const double speed = options_.speed;
-    return renderer_.render([speed](double t) { return camera_pose_at(t, speed); }, time(i),
+    const SynthOptions& options = options_;
+    return renderer_.render([&options](double t) { return path_pose_at(options, t); }, time(i),
                             options_.readout_time);
   }
   return renderer_.render(T_w_c(i), time(i));

@@ -25,6 +25,14 @@ namespace mcslam::synth {
 /// so that corners come mostly from the geometry (for line/plane tests).
 enum class TextureLevel { kRich, kLow };
 
+/// The camera's path through the room: kWander looks mostly at the +x wall and its objects (the
+/// default); kLoop goes round the room once every SynthOptions::loop_period seconds (at speed 1)
+/// looking outwards, so that it sees every wall and comes back to where it started, with the
+/// same view (for loop closing); kOrbit goes round the objects on a 3.5 x 3 m ellipse looking
+/// in at the room's centre (with room_scale >= 2, so that the walls fit round it), a lap of
+/// about 20 m.
+enum class CameraPath { kWander, kLoop, kOrbit };
+
 struct SynthOptions {
   int width = 640;
   int height = 480;
@@ -42,6 +50,14 @@ struct SynthOptions {
   bool depth_noise = false;
   /// Scales the speed of the camera along its path (0 gives a static camera).
   double speed = 1.0;
+  CameraPath path = CameraPath::kWander;
+  /// Duration of one lap of CameraPath::kLoop at speed 1 (seconds).
+  double loop_period = 24.0;
+  /// Scales the room's floor plan (6 x 5 m at 1; the height, objects and camera path stay):
+  /// at 2 the walls are 5-6 m from the loop path, beyond the Kinect-like depth range of
+  /// depth_noise (4.5 m), so that their features have no depth and odometry drifts as it does
+  /// in a large real room.
+  double room_scale = 1.0;
   /// Standard deviation of the per-frame Gaussian RGB noise, in grey levels (0 disables it).
   double rgb_noise_sigma = 2.0;
   /// Rolling-shutter readout time in seconds (first to last row), in [0, 0.1]; 0 renders a global
@@ -235,5 +251,18 @@ Trajectory camera_path(const SynthOptions& options);
 
 /// The camera pose of camera_path at scene time t (for any t, speed applied).
 SE3 camera_pose_at(double t, double speed = 1.0);
+
+/// The pose of CameraPath::kLoop at scene time t: an ellipse of 0.7 x 0.6 m round (0, 0) at a
+/// height of 1.4 m (+-5 cm), the camera looking outwards (its heading turns once per lap) and
+/// 12 deg down, with a few degrees of wobble that repeats every lap, so that lap k + 1 sees
+/// what lap k saw from the same poses. At speed 1 and the default period: 0.17 m/s, 15 deg/s.
+SE3 loop_pose_at(double t, double speed = 1.0, double period = 24.0);
+
+/// The pose of CameraPath::kOrbit at scene time t: an ellipse of 3.5 x 3 m round (0, 0) at
+/// 1.5 m (+-5 cm), looking at (0.3, 0, 0.6) with a few degrees of wobble that repeats every lap.
+SE3 orbit_pose_at(double t, double speed = 1.0, double period = 24.0);
+
+/// The pose of the options' path at scene time t.
+SE3 path_pose_at(const SynthOptions& options, double t);
 
 }  // namespace mcslam::synth
