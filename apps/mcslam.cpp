@@ -179,6 +179,10 @@ int main(int argc, char** argv) {
                     "Keep the boxes but do not exclude dynamic objects (ablation)");
   run_cmd->add_flag("--no-constraints", run.no_constraints,
                     "Exclude dynamic objects but skip the moving-constraint check (ablation)");
+  run_cmd->add_option("--vocabulary", run.vocabulary,
+                      "Bag-of-words vocabulary file (default: place.vocabulary, the one in data/)");
+  run_cmd->add_flag("--no-loop-closing", run.no_loop_closing,
+                    "Do not close loops (relocalisation still uses the vocabulary)");
   run_cmd->add_flag("--save-overlays", run.save_overlays,
                     "Write annotated frames to overlays/ (points, lines, objects and decisions)");
   run_cmd
@@ -263,6 +267,19 @@ int main(int argc, char** argv) {
   synth_cmd->add_option("--texture", texture, "rich or low")->check(CLI::IsMember({"rich", "low"}));
   synth_cmd->add_flag("--depth-noise", synth_options.depth_noise, "Kinect-like depth noise");
   synth_cmd->add_option("--speed", synth_options.speed, "Camera speed factor");
+  std::string path = "wander";
+  synth_cmd
+      ->add_option("--path", path,
+                   "Camera path: wander (looks at the +x wall, the default), loop (goes round "
+                   "the room once per --loop-period seconds looking out, back to its start) or "
+                   "orbit (round the objects on a 3.5 x 3 m ellipse looking in; --room-scale 2 "
+                   "or more)")
+      ->check(CLI::IsMember({"wander", "loop", "orbit"}));
+  synth_cmd->add_option("--loop-period", synth_options.loop_period,
+                        "Seconds per lap of --path loop at speed 1 (default 24)");
+  synth_cmd->add_option("--room-scale", synth_options.room_scale,
+                        "Scale of the room's floor plan, 1-4 (default 1: 6 x 5 m); at 2 the walls "
+                        "are beyond the depth range of --depth-noise");
   synth_cmd->add_option("--readout-time", synth_options.readout_time,
                         "Rolling-shutter readout time in seconds (0 = global shutter)");
   synth_cmd->add_option("--width", synth_options.width, "Image width");
@@ -369,6 +386,8 @@ int main(int argc, char** argv) {
     if (eval_cmd->parsed()) return eval_command(gt_path, est_path, bonn, json, max_dt);
     if (synth_cmd->parsed()) {
       if (texture == "low") synth_options.texture = mcslam::synth::TextureLevel::kLow;
+      if (path == "loop") synth_options.path = mcslam::synth::CameraPath::kLoop;
+      if (path == "orbit") synth_options.path = mcslam::synth::CameraPath::kOrbit;
       if (no_person && people_opt->count() > 0 && dyn.people > 0)
         throw mcslam::InputError("--no-person and --people " + std::to_string(dyn.people) +
                                  " exclude each other (--no-person is --people 0)");

@@ -205,6 +205,49 @@ void apply_feature_list(const std::string& list, bool& points, bool& lines, bool
 
 namespace {
 
+/// Loops for summary.json: counts, every verified candidate with its figures, timings.
+nlohmann::json loops_json(const slam::LoopStatistics& stats, const slam::PlaceOptions& place) {
+  nlohmann::json events = nlohmann::json::array();
+  int accepted = 0;
+  for (const auto& e : stats.events) {
+    accepted += e.accepted ? 1 : 0;
+    nlohmann::json j = {{"keyframe", e.keyframe},
+                        {"matched_keyframe", e.matched},
+                        {"timestamp", e.timestamp},
+                        {"matched_timestamp", e.matched_timestamp},
+                        {"score", e.score},
+                        {"matches", e.matches},
+                        {"ransac_inliers", e.ransac_inliers},
+                        {"inliers", e.inliers},
+                        {"accepted", e.accepted},
+                        {"verify_ms", e.verify_ms}};
+    if (e.accepted) {
+      j["correction_m"] = e.correction_m;
+      j["correction_deg"] = e.correction_deg;
+      j["fused_points"] = e.fused_points;
+      j["correct_ms"] = e.correct_ms;
+    } else {
+      j["reason"] = e.reason;
+    }
+    events.push_back(std::move(j));
+  }
+  const SampleStats detection = compute_stats(stats.detection_ms);
+  const SampleStats ba = compute_stats(stats.full_ba_ms);
+  return {{"enabled", place.loop.enabled && !place.vocabulary.empty()},
+          {"vocabulary", place.vocabulary},
+          {"candidates_without_matches", stats.unmatched_candidates},
+          {"detected", stats.events.size()},
+          {"accepted", accepted},
+          {"rejected", static_cast<int>(stats.events.size()) - accepted},
+          {"detection_median_ms", detection.median},
+          {"detection_p95_ms", detection.p95},
+          {"keyframes_checked", detection.count},
+          {"full_ba_runs", stats.full_ba_runs},
+          {"full_ba_aborted", stats.full_ba_aborted},
+          {"full_ba_median_ms", ba.median},
+          {"events", events}};
+}
+
 /// Resident memory of this process now, in MiB (Linux), 0 when unknown.
 double current_rss_mib() {
   std::ifstream statm("/proc/self/statm");
@@ -353,6 +396,9 @@ nlohmann::json run_frames(const RunRequest& request, const io::RgbdSequence& seq
   StageTable stage_table;
   std::map<std::string, std::vector<double>> stage_samples;
   std::vector<double> tracking_ms, load_ms;
+  std::vector<double> reloc_query_ms;
+  nlohmann::json reloc_events = nlohmann::json::array();
+  bool reloc_by_database = false;
   std::vector<float> rss_mib;
   std::map<std::string, std::vector<double>> counts;  // per-frame feature and inlier counts
   int lost = 0, relocalised = 0, keyframes_inserted = 0, tracked = 0;
@@ -420,6 +466,18 @@ nlohmann::json run_frames(const RunRequest& request, const io::RgbdSequence& seq
     tracked += r.state == slam::TrackingState::kOk ? 1 : 0;
     lost += r.state == slam::TrackingState::kLost ? 1 : 0;
     relocalised += r.relocalised ? 1 : 0;
+    if (r.relocalisation) {
+      reloc_query_ms.push_back(r.relocalisation->query_ms);
+      reloc_by_database = reloc_by_database || r.relocalisation->by_database;
+      if (r.relocalised)
+        reloc_events.push_back({{"frame", r.frame_id},
+                                {"timestamp", r.timestamp},
+                                {"by_database", r.relocalisation->by_database},
+                                {"keyframe", r.relocalisation->keyframe},
+                                {"score", r.relocalisation->score},
+                                {"candidates", r.relocalisation->candidates},
+                                {"query_ms", r.relocalisation->query_ms}});
+    }
     keyframes_inserted += r.keyframe ? 1 : 0;
     tracking_ms.push_back(r.times.total_ms());
     rss_mib.push_back(static_cast<float>(current_rss_mib()));
@@ -543,6 +601,16 @@ nlohmann::json run_frames(const RunRequest& request, const io::RgbdSequence& seq
   summary["lost_frames"] = lost;
   summary["not_initialized_frames"] = static_cast<int>(processed) - tracked - lost;
   summary["relocalisations"] = relocalised;
+  {
+    const SampleStats q = compute_stats(reloc_query_ms);
+    summary["relocalisation"] = {{"attempts", reloc_query_ms.size()},
+                                 {"succeeded", relocalised},
+                                 {"by_database", reloc_by_database},
+                                 {"query_median_ms", q.median},
+                                 {"query_p95_ms", q.p95},
+                                 {"events", reloc_events}};
+  }
+  summary["loops"] = loops_json(system.loop_statistics(), config.options.place);
   summary["keyframes_inserted"] = keyframes_inserted;
   {
     auto lock = system.map().read_lock();
@@ -702,6 +770,8 @@ nlohmann::json run_sequence(const RunRequest& request) {
 
   if (request.no_dynamics) config.options.tracker.dynamics.enabled = false;
   if (request.no_constraints) config.options.tracker.dynamics.constraints = false;
+  if (request.vocabulary) config.options.place.vocabulary = *request.vocabulary;
+  if (request.no_loop_closing) config.options.place.loop.enabled = false;
   std::unique_ptr<slam::DetectionSource> detection_source =
       make_detection_source(request, config.camera, config.options);
   if (!detection_source)

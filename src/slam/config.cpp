@@ -12,7 +12,7 @@ namespace mcslam::slam {
 namespace {
 
 /// A list of names is written as one comma-separated scalar ("chair, dining table").
-using FieldRef = std::variant<double*, int*, bool*, std::vector<std::string>*>;
+using FieldRef = std::variant<double*, int*, bool*, std::string*, std::vector<std::string>*>;
 struct Field {
   std::string key;
   FieldRef value;
@@ -157,6 +157,20 @@ std::vector<Field> mcslam_fields(PinholeCamera& c, SystemOptions& o) {
       {"mapper.ba.robust_iterations", &m.ba.robust_iterations},
       {"mapper.ba.refine_iterations", &m.ba.refine_iterations},
       {"mapper.ba.num_threads", &m.ba.num_threads},
+      {"place.vocabulary", &o.place.vocabulary},
+      {"place.direct_levels_up", &o.place.direct_levels_up},
+      {"loop.enabled", &o.place.loop.enabled},
+      {"loop.min_keyframes", &o.place.loop.min_keyframes},
+      {"loop.min_consistency", &o.place.loop.min_consistency},
+      {"loop.min_matches", &o.place.loop.min_matches},
+      {"loop.min_ransac_inliers", &o.place.loop.min_ransac_inliers},
+      {"loop.min_inliers", &o.place.loop.min_inliers},
+      {"loop.ransac_iterations", &o.place.loop.ransac_iterations},
+      {"loop.essential_edge_weight", &o.place.loop.essential_edge_weight},
+      {"loop.pose_graph.iterations", &o.place.loop.pose_graph.iterations},
+      {"loop.pose_graph.sigma_translation", &o.place.loop.pose_graph.sigma_translation},
+      {"loop.pose_graph.sigma_rotation", &o.place.loop.pose_graph.sigma_rotation},
+      {"loop.full_ba_iterations", &o.place.loop.full_ba_iterations},
       {"system.sequential", &o.sequential},
       {"system.detection_interval", &o.detection_interval},
   };

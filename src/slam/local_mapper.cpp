@@ -3,8 +3,10 @@
 #include <algorithm>
 #include <cmath>
 #include <opencv2/core.hpp>
+#include <set>
 #include <unordered_set>
 
+#include "map_adjustment.hpp"
 #include "mcslam/features/lines.hpp"
 #include "mcslam/optim/bundle_adjustment.hpp"
 #include "measurement.hpp"
@@ -48,8 +50,52 @@ void LocalMapper::process(KeyFrameRequest request, StageTimes* times) {
     map_.bump_version();
   }
   if (times) *times = local;
-  std::lock_guard<std::mutex> guard(times_mutex_);
-  times_.push_back(std::move(local));
+  {
+    std::lock_guard<std::mutex> guard(times_mutex_);
+    times_.push_back(std::move(local));
+  }
+  if (listener_ && map_.keyframe(id) != nullptr) listener_(id);
+}
+
+void LocalMapper::set_vocabulary(std::shared_ptr<const place::Vocabulary> vocabulary,
+                                 int levels_up) {
+  vocabulary_ = std::move(vocabulary);
+  direct_levels_up_ = levels_up;
+  if (vocabulary_) {
+    auto lock = map_.write_lock();
+    map_.enable_database(vocabulary_->words());
+  }
+}
+
+void LocalMapper::set_keyframe_listener(std::function<void(map::KeyFrameId)> listener) {
+  listener_ = std::move(listener);
+}
+
+void LocalMapper::run_task(const std::function<void()>& task) {
+  {
+    std::unique_lock<std::mutex> lock(queue_mutex_);
+    if (!thread_.joinable() || std::this_thread::get_id() == thread_.get_id()) {
+      lock.unlock();
+      task();
+      return;
+    }
+  }
+  std::mutex done_mutex;
+  std::condition_variable done_cv;
+  bool done = false;
+  {
+    std::lock_guard<std::mutex> guard(queue_mutex_);
+    tasks_.push_back([&] {
+      task();
+      std::lock_guard<std::mutex> done_guard(done_mutex);
+      done = true;
+      done_cv.notify_one();
+    });
+  }
+  abort_ba_ = true;
+  queue_cv_.notify_one();
+  std::unique_lock<std::mutex> wait(done_mutex);
+  done_cv.wait(wait, [&] { return done; });
 }
 
 void LocalMapper::start() {
@@ -80,7 +126,7 @@ void LocalMapper::finish() {
 
 bool LocalMapper::idle() const {
   std::lock_guard<std::mutex> guard(queue_mutex_);
-  return queue_.empty() && !busy_;
+  return queue_.empty() && tasks_.empty() && !busy_;
 }
 
 std::size_t LocalMapper::queue_size() const {
@@ -98,7 +144,17 @@ void LocalMapper::run() {
     KeyFrameRequest request;
     {
       std::unique_lock<std::mutex> lock(queue_mutex_);
-      queue_cv_.wait(lock, [this] { return stop_ || !queue_.empty(); });
+      queue_cv_.wait(lock, [this] { return stop_ || !queue_.empty() || !tasks_.empty(); });
+      if (!tasks_.empty()) {
+        std::function<void()> task = std::move(tasks_.front());
+        tasks_.pop_front();
+        busy_ = true;
+        lock.unlock();
+        task();
+        lock.lock();
+        busy_ = false;
+        continue;
+      }
       if (queue_.empty()) return;  // stop requested and everything processed
       request = std::move(queue_.front());
       queue_.pop_front();
@@ -124,9 +180,20 @@ void LocalMapper::insert_keyframe(const KeyFrameRequest& request) {
   kf.frame_id = request.frame.id;
   kf.timestamp = request.frame.timestamp;
   kf.T_c_w = request.T_c_w;
+  // Tracked before a loop correction: the keyframe moves with the keyframe it was tracked on.
+  if (request.map_version < corrected_version_ && request.reference != map::kNoId)
+    if (const map::KeyFrame* ref = map_.keyframe(request.reference))
+      kf.T_c_w = request.T_c_ref * ref->T_c_w;
   kf.features = request.frame.features;
   kf.excluded_points = request.excluded_points;
   kf.excluded_lines = request.excluded_lines;
+  if (vocabulary_) {
+    std::vector<features::OrbDescriptor> descriptors;
+    descriptors.reserve(kf.features->points.size());
+    for (const auto& p : kf.features->points) descriptors.push_back(p.descriptor);
+    kf.bow = std::make_shared<const place::BowImage>(
+        vocabulary_->transform(descriptors, direct_levels_up_, kf.excluded_points));
+  }
   const map::KeyFrameId id = map_.add_keyframe(std::move(kf));
   for (std::size_t i = 0; i < request.landmarks.size(); ++i) {
     const map::PointId p = request.landmarks[i];
@@ -134,7 +201,7 @@ void LocalMapper::insert_keyframe(const KeyFrameRequest& request) {
     map_.add_observation(p, id, static_cast<int>(i));
     map_.update_point_appearance(p);
   }
-  const SE3 T_w_c = request.T_c_w.inverse();
+  const SE3 T_w_c = map_.keyframe(id)->T_c_w.inverse();
   const auto& lines = request.frame.features->lines;
   for (std::size_t i = 0; i < request.line_landmarks.size(); ++i) {
     const map::LineId l = request.line_landmarks[i];
@@ -475,139 +542,12 @@ void LocalMapper::global_bundle_adjustment() {
 void LocalMapper::bundle_adjust_keyframes(const std::vector<map::KeyFrameId>& local,
                                           const optim::BundleAdjustmentOptions& ba_options,
                                           const std::atomic<bool>* abort) {
-  std::unordered_set<map::KeyFrameId> local_set(local.begin(), local.end());
-
-  optim::BundleAdjustmentProblem problem;
-  std::unordered_map<map::KeyFrameId, int> pose_index;
-  std::unordered_map<map::PointId, int> point_index;
-  std::vector<map::PointId> point_ids;
-  std::vector<std::pair<map::KeyFrameId, map::PointId>> observation_ids;
-  const map::KeyFrameId first_keyframe = [&] {
-    map::KeyFrameId first = map::kNoId;
-    for (const auto& kv : map_.keyframes()) first = std::min(first, kv.first);
-    return first;
-  }();
-  const auto add_pose = [&](map::KeyFrameId kf_id, bool fixed) {
-    const auto [it, inserted] = pose_index.emplace(kf_id, static_cast<int>(problem.poses.size()));
-    if (inserted) {
-      problem.poses.push_back(map_.keyframe(kf_id)->T_c_w);
-      problem.pose_fixed.push_back(fixed || kf_id == first_keyframe);
-    }
-    return it->second;
-  };
-  for (map::KeyFrameId kf_id : local) add_pose(kf_id, false);
-  for (map::KeyFrameId kf_id : local) {
-    for (map::PointId pid : map_.keyframe(kf_id)->landmarks) {
-      if (pid == map::kNoId || point_index.count(pid) != 0) continue;
-      const map::MapPoint* mp = map_.point(pid);
-      if (mp == nullptr) continue;
-      point_index.emplace(pid, static_cast<int>(problem.points.size()));
-      problem.points.push_back(mp->p_w);
-      point_ids.push_back(pid);
-    }
-  }
-  for (std::size_t k = 0; k < point_ids.size(); ++k) {
-    const map::MapPoint* mp = map_.point(point_ids[k]);
-    for (const auto& [kf_id, index] : mp->observations) {
-      const map::KeyFrame* kf = map_.keyframe(kf_id);
-      if (kf == nullptr) continue;
-      optim::BundleAdjustmentProblem::Observation obs;
-      obs.pose = add_pose(kf_id, local_set.count(kf_id) == 0);
-      obs.point = static_cast<int>(k);
-      obs.measurement = measurement_of(kf->features->points[static_cast<std::size_t>(index)],
-                                       *kf->features->pyramid, options_.depth_weight);
-      problem.observations.push_back(obs);
-      observation_ids.emplace_back(kf_id, point_ids[k]);
-    }
-  }
-  // Lines of the local keyframes, with every observation.
-  std::vector<map::LineId> line_ids;
-  std::vector<std::pair<map::KeyFrameId, map::LineId>> line_observation_ids;
-  {
-    std::unordered_set<map::LineId> seen;
-    for (map::KeyFrameId kf_id : local)
-      for (map::LineId lid : map_.keyframe(kf_id)->line_landmarks)
-        if (lid != map::kNoId && map_.line(lid) != nullptr && seen.insert(lid).second)
-          line_ids.push_back(lid);
-  }
-  for (std::size_t k = 0; k < line_ids.size(); ++k) {
-    const map::MapLine* ml = map_.line(line_ids[k]);
-    problem.lines.push_back({ml->start_w, ml->end_w});
-    for (const auto& [kf_id, index] : ml->observations) {
-      const map::KeyFrame* kf = map_.keyframe(kf_id);
-      if (kf == nullptr) continue;
-      optim::BundleAdjustmentProblem::LineObservation obs;
-      obs.pose = add_pose(kf_id, local_set.count(kf_id) == 0);
-      obs.line = static_cast<int>(k);
-      obs.measurement = line_measurement_of(kf->features->lines[static_cast<std::size_t>(index)],
-                                            tracker_options_.line_sigma);
-      problem.line_observations.push_back(obs);
-      line_observation_ids.emplace_back(kf_id, line_ids[k]);
-    }
-  }
-  // Planes seen by the local keyframes, with every observation (other keyframes fixed).
-  std::vector<map::PlaneId> plane_ids;
-  std::vector<std::pair<map::KeyFrameId, map::PlaneId>> plane_observation_ids;
-  {
-    std::unordered_set<map::PlaneId> seen;
-    for (map::KeyFrameId kf_id : local)
-      for (map::PlaneId pid : map_.keyframe(kf_id)->plane_landmarks)
-        if (pid != map::kNoId && map_.plane(pid) != nullptr && seen.insert(pid).second)
-          plane_ids.push_back(pid);
-  }
-  for (std::size_t k = 0; k < plane_ids.size(); ++k) {
-    const map::MapPlane* mp = map_.plane(plane_ids[k]);
-    problem.planes.push_back(mp->coefficients());
-    for (const auto& [kf_id, index] : mp->observations) {
-      const map::KeyFrame* kf = map_.keyframe(kf_id);
-      if (kf == nullptr) continue;
-      optim::BundleAdjustmentProblem::PlaneObservation obs;
-      obs.pose = add_pose(kf_id, local_set.count(kf_id) == 0);
-      obs.plane = static_cast<int>(k);
-      obs.measurement = plane_measurement_of(kf->features->planes[static_cast<std::size_t>(index)],
-                                             tracker_options_.plane_angle_sigma_deg,
-                                             tracker_options_.plane_distance_sigma);
-      problem.plane_observations.push_back(obs);
-      plane_observation_ids.emplace_back(kf_id, plane_ids[k]);
-    }
-  }
-  if (problem.observations.empty() && problem.line_observations.empty() &&
-      problem.plane_observations.empty())
-    return;
-  const std::vector<optim::BundleAdjustmentProblem::Line> lines_before = problem.lines;
-  const auto result = optim::bundle_adjust(camera_, problem, ba_options, abort);
-
+  // The mapper is the only writer: building without the lock is safe on this thread.
+  MapAdjustment adjustment = build_adjustment(map_, local, options_.depth_weight, tracker_options_);
+  if (adjustment.empty()) return;
+  const auto result = optim::bundle_adjust(camera_, adjustment.problem, ba_options, abort);
   auto lock = map_.write_lock();
-  for (std::size_t k = 0; k < observation_ids.size(); ++k)
-    if (!result.inlier[k])
-      map_.erase_observation(observation_ids[k].second, observation_ids[k].first);
-  for (std::size_t k = 0; k < line_observation_ids.size(); ++k)
-    if (!result.line_inlier[k])
-      map_.erase_line_observation(line_observation_ids[k].second, line_observation_ids[k].first);
-  for (std::size_t k = 0; k < plane_observation_ids.size(); ++k)
-    if (!result.plane_inlier[k])
-      map_.erase_plane_observation(plane_observation_ids[k].second, plane_observation_ids[k].first);
-  for (const auto& [kf_id, index] : pose_index)
-    if (!problem.pose_fixed[static_cast<std::size_t>(index)])
-      map_.set_keyframe_pose(kf_id, problem.poses[static_cast<std::size_t>(index)]);
-  for (std::size_t k = 0; k < point_ids.size(); ++k) {
-    if (map_.point(point_ids[k]) == nullptr) continue;
-    map_.set_point_position(point_ids[k], problem.points[k]);
-    map_.update_point_appearance(point_ids[k]);
-  }
-  // Residual (7) fixes the infinite line, not where the endpoints sit along it (they drift):
-  // the segment keeps its extent, moved onto the optimised line.
-  for (std::size_t k = 0; k < line_ids.size(); ++k) {
-    const Eigen::Vector3d& a = problem.lines[k].start;
-    const Eigen::Vector3d& b = problem.lines[k].end;
-    if (!((b - a).norm() > 1e-9)) continue;
-    const Eigen::Vector3d dir = (b - a).normalized();
-    const auto onto = [&](const Eigen::Vector3d& p) { return a + dir * dir.dot(p - a); };
-    map_.set_line_endpoints(line_ids[k], onto(lines_before[k].start), onto(lines_before[k].end));
-  }
-  for (std::size_t k = 0; k < plane_ids.size(); ++k)
-    map_.set_plane(plane_ids[k], problem.planes[k]);
-  for (map::KeyFrameId kf_id : local) map_.update_covisibility(kf_id);
+  apply_adjustment(map_, adjustment, result);
 }
 
 void LocalMapper::cull_keyframes(map::KeyFrameId id) {
@@ -620,7 +560,7 @@ void LocalMapper::cull_keyframes(map::KeyFrameId id) {
   for (map::KeyFrameId candidate : map_.best_covisible(id, 1000)) {
     if (candidate == first_keyframe || candidate == id) continue;
     const map::KeyFrame* kf = map_.keyframe(candidate);
-    if (kf == nullptr) continue;
+    if (kf == nullptr || !kf->loop_edges.empty()) continue;  // loop ends stay
     int close_points = 0;
     int redundant = 0;
     for (std::size_t i = 0; i < kf->landmarks.size(); ++i) {
@@ -647,6 +587,143 @@ void LocalMapper::cull_keyframes(map::KeyFrameId id) {
     if (close_points > 0 && redundant > options_.redundant_ratio * close_points)
       map_.erase_keyframe(candidate);
   }
+}
+
+void LocalMapper::correct(const MapCorrection& correction) {
+  auto lock = map_.write_lock();
+  apply_correction(map_, correction);
+  corrected_version_ = map_.version();
+}
+
+bool LocalMapper::close_loop(const LoopClosure& loop, const LoopOptions& options,
+                             LoopEvent& event) {
+  Stopwatch watch;
+  // The mapper is the only writer: reading without the lock is safe on this thread.
+  const map::KeyFrame* current = map_.keyframe(loop.keyframe);
+  if (current == nullptr || map_.keyframe(loop.matched) == nullptr) {
+    event.reason = "a keyframe of the loop was culled before the correction";
+    return false;
+  }
+  // Every keyframe's pose and covisible set before anything moves.
+  std::unordered_map<map::KeyFrameId, SE3> before;
+  std::unordered_map<map::KeyFrameId, std::unordered_set<map::KeyFrameId>> linked_before;
+  for (const auto& [id, kf] : map_.keyframes()) {
+    before.emplace(id, kf.T_c_w);
+    auto& linked = linked_before[id];
+    for (const auto& kv : kf.covisibility) linked.insert(kv.first);
+  }
+  // The new keyframe and its neighbours, moved rigidly to where the loop puts the new one.
+  std::vector<map::KeyFrameId> group = {loop.keyframe};
+  for (map::KeyFrameId n : map_.best_covisible(loop.keyframe, current->covisibility.size()))
+    if (n != loop.matched) group.push_back(n);
+  const SE3 T_cur_w = current->T_c_w;
+  std::unordered_map<map::KeyFrameId, SE3> corrected;
+  for (map::KeyFrameId g : group)
+    corrected.emplace(g, map_.keyframe(g)->T_c_w * T_cur_w.inverse() * loop.T_c_w);
+  event.correction_m =
+      (T_cur_w.inverse().translation() - loop.T_c_w.inverse().translation()).norm();
+  event.correction_deg =
+      rotation_angle(T_cur_w.quaternion() * loop.T_c_w.quaternion().conjugate()) * 180.0 / M_PI;
+
+  // The old place's landmarks, fused into the group seen from the corrected poses.
+  std::vector<map::KeyFrameId> old_place = {loop.matched};
+  for (map::KeyFrameId n : map_.best_covisible(loop.matched, 10))
+    if (corrected.count(n) == 0) old_place.push_back(n);
+  std::vector<map::PointId> old_points;
+  std::vector<map::LineId> old_lines;
+  {
+    std::unordered_set<map::PointId> seen_points;
+    std::unordered_set<map::LineId> seen_lines;
+    for (map::KeyFrameId k : old_place) {
+      const map::KeyFrame* kf = map_.keyframe(k);
+      for (map::PointId p : kf->landmarks)
+        if (p != map::kNoId && map_.point(p) != nullptr && seen_points.insert(p).second)
+          old_points.push_back(p);
+      for (map::LineId l : kf->line_landmarks)
+        if (l != map::kNoId && map_.line(l) != nullptr && seen_lines.insert(l).second)
+          old_lines.push_back(l);
+    }
+  }
+  {
+    auto lock = map_.write_lock();
+    for (const auto& [g, T] : corrected) map_.set_keyframe_pose(g, T);
+    // The verified matches first: the new keyframe's feature takes the old place's point.
+    for (const auto& [feature, point] : loop.matches) {
+      const map::KeyFrame* kf = map_.keyframe(loop.keyframe);
+      if (map_.point(point) == nullptr || feature < 0 ||
+          static_cast<std::size_t>(feature) >= kf->landmarks.size())
+        continue;
+      if (map_.point(point)->observations.count(loop.keyframe) != 0) continue;
+      const map::PointId mine = kf->landmarks[static_cast<std::size_t>(feature)];
+      if (mine == point) continue;
+      if (mine != map::kNoId && map_.point(mine) != nullptr)
+        map_.replace_point(mine, point);
+      else
+        map_.add_observation(point, loop.keyframe, feature);
+      map_.update_point_appearance(point);
+      ++event.fused_points;
+    }
+    for (map::KeyFrameId g : group) {
+      event.fused_points += fuse_into(g, old_points);
+      fuse_lines_into(g, old_lines);
+    }
+    for (map::KeyFrameId g : group) map_.update_covisibility(g);
+    map_.add_loop_edge(loop.keyframe, loop.matched);
+  }
+
+  // The essential graph: keyframes in order, strong covisibility, loops; edges measured on the
+  // poses before the correction, except the connections the loop made (measured after it).
+  std::vector<map::KeyFrameId> ids;
+  for (const auto& kv : map_.keyframes()) ids.push_back(kv.first);
+  std::sort(ids.begin(), ids.end());
+  std::unordered_map<map::KeyFrameId, int> index;
+  optim::PoseGraphProblem graph;
+  for (map::KeyFrameId id : ids) {
+    index.emplace(id, static_cast<int>(graph.poses.size()));
+    const auto it = corrected.find(id);
+    graph.poses.push_back(it != corrected.end() ? it->second : before.at(id));
+    graph.fixed.push_back(id == ids.front());
+  }
+  const auto pose_before = [&](map::KeyFrameId id) { return before.at(id); };
+  const auto pose_after = [&](map::KeyFrameId id) {
+    const auto it = corrected.find(id);
+    return it != corrected.end() ? it->second : before.at(id);
+  };
+  std::set<std::pair<map::KeyFrameId, map::KeyFrameId>> added;
+  const auto add_edge = [&](map::KeyFrameId a, map::KeyFrameId b, bool loop_connection) {
+    if (a == b || before.count(a) == 0 || before.count(b) == 0) return;
+    const auto key = std::minmax(a, b);
+    if (!added.insert(key).second) return;
+    const SE3 T_a_b = loop_connection ? pose_after(a) * pose_after(b).inverse()
+                                      : pose_before(a) * pose_before(b).inverse();
+    graph.edges.push_back({index.at(a), index.at(b), T_a_b, 1.0});
+  };
+  for (std::size_t k = 1; k < ids.size(); ++k) add_edge(ids[k - 1], ids[k], false);
+  for (map::KeyFrameId id : ids) {
+    const map::KeyFrame* kf = map_.keyframe(id);
+    for (map::KeyFrameId other : kf->loop_edges) {
+      const bool this_loop = std::minmax(id, other) == std::minmax(loop.keyframe, loop.matched);
+      add_edge(id, other, this_loop);
+    }
+    for (const auto& [other, weight] : kf->covisibility) {
+      const bool was_linked =
+          linked_before.count(id) != 0 && linked_before.at(id).count(other) != 0;
+      const bool across = (corrected.count(id) != 0) != (corrected.count(other) != 0);
+      if (across && !was_linked)
+        add_edge(id, other, true);  // a connection the loop made
+      else if (weight >= options.essential_edge_weight)
+        add_edge(id, other, false);
+    }
+  }
+  optim::optimize_pose_graph(graph, options.pose_graph);
+
+  MapCorrection correction;
+  correction.before = std::move(before);
+  for (map::KeyFrameId id : ids)
+    correction.after.emplace(id, graph.poses[static_cast<std::size_t>(index.at(id))]);
+  correct(correction);
+  event.correct_ms = watch.elapsed_ms();
+  return true;
 }
 
 }  // namespace mcslam::slam

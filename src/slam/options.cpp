@@ -74,7 +74,30 @@ std::optional<std::string> SystemOptions::check() const {
   if (auto e = lines.check()) return e;
   if (auto e = planes.check()) return e;
   if (auto e = tracker.check()) return e;
+  if (auto e = place.check()) return e;
   return mapper.check();
+}
+
+std::optional<std::string> LoopOptions::check() const {
+  if (min_keyframes < 1) return "loop.min_keyframes must be at least 1";
+  if (min_consistency < 1) return "loop.min_consistency must be at least 1";
+  if (min_ransac_inliers < 3 || min_matches < min_ransac_inliers)
+    return "loop.min_ransac_inliers must be at least 3 and loop.min_matches at least as many";
+  if (min_inliers < min_ransac_inliers)
+    return "loop.min_inliers must be at least loop.min_ransac_inliers";
+  if (ransac_iterations < 1) return "loop.ransac_iterations must be at least 1";
+  if (essential_edge_weight < 1) return "loop.essential_edge_weight must be at least 1";
+  if (full_ba_iterations < 0) return "loop.full_ba_iterations must not be negative";
+  return pose_graph.check();
+}
+
+std::string PlaceOptions::default_vocabulary_path() { return MCSLAM_DEFAULT_VOCABULARY; }
+
+std::optional<std::string> PlaceOptions::check() const {
+  if (direct_levels_up < 0) return "place.direct_levels_up must not be negative";
+  if (loop.enabled && vocabulary.empty())
+    return "loop.enabled needs a vocabulary (place.vocabulary)";
+  return loop.check();
 }
 
 }  // namespace mcslam::slam

@@ -1,7 +1,9 @@
 #include "mcslam/slam/system.hpp"
 
+#include <chrono>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
+#include <thread>
 
 #include "mcslam/core/error.hpp"
 #include "mcslam/io/undistort.hpp"
@@ -17,10 +19,27 @@ System::System(const PinholeCamera& camera, const SystemOptions& options)
   undistorter_ = std::make_unique<io::Undistorter>(camera_);
   builder_ = std::make_unique<FrameBuilder>(camera_, options_);
   map_ = std::make_unique<map::Map>();
-  tracker_ = std::make_unique<Tracker>(camera_, options_.tracker, *map_);
+  if (!options_.place.vocabulary.empty())
+    vocabulary_ = std::make_shared<const place::Vocabulary>(
+        place::Vocabulary::load(options_.place.vocabulary));
+  tracker_ = std::make_unique<Tracker>(camera_, options_.tracker, *map_, vocabulary_,
+                                       options_.place.direct_levels_up);
   const double close_depth = options_.tracker.close_depth_factor * camera_.bf / camera_.fx;
   mapper_ =
       std::make_unique<LocalMapper>(camera_, options_.mapper, options_.tracker, close_depth, *map_);
+  if (vocabulary_) mapper_->set_vocabulary(vocabulary_, options_.place.direct_levels_up);
+  if (vocabulary_ && options_.place.loop.enabled) {
+    loop_closer_ =
+        std::make_unique<LoopCloser>(camera_, options_.place.loop, options_.tracker,
+                                     options_.mapper.depth_weight, vocabulary_, *map_, *mapper_);
+    LoopCloser* closer = loop_closer_.get();
+    if (options_.sequential) {
+      mapper_->set_keyframe_listener([closer](map::KeyFrameId id) { closer->process(id); });
+    } else {
+      mapper_->set_keyframe_listener([closer](map::KeyFrameId id) { closer->enqueue(id); });
+      loop_closer_->start();
+    }
+  }
   if (!options_.sequential) mapper_->start();
 }
 
@@ -134,6 +153,7 @@ FrameResult System::process(const cv::Mat& rgb, const cv::Mat& depth, double tim
                                             sequential ? 0 : mapper_->queue_size(), &result.times);
   result.state = outcome.state;
   result.relocalised = outcome.relocalised;
+  result.relocalisation = outcome.relocalisation;
   result.matches = outcome.matches;
   result.inliers = outcome.inliers;
   result.line_matches = outcome.line_matches;
@@ -176,6 +196,12 @@ FrameResult System::process(const cv::Mat& rgb, const cv::Mat& depth, double tim
 void System::finish() {
   if (finished_) return;
   finished_ = true;
+  // The mapper's queue first (its keyframes go to the loop closer), then the loop closer (its
+  // corrections run on the mapper's thread), then the mapper.
+  if (loop_closer_) {
+    while (!mapper_->idle()) std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    loop_closer_->finish();
+  }
   mapper_->finish();
   if (options_.mapper.global_ba_iterations > 0) mapper_->global_bundle_adjustment();
 }
@@ -209,5 +235,9 @@ Trajectory System::keyframe_trajectory() const {
 }
 
 std::vector<StageTimes> System::mapper_times() const { return mapper_->keyframe_times(); }
+
+LoopStatistics System::loop_statistics() const {
+  return loop_closer_ ? loop_closer_->statistics() : LoopStatistics{};
+}
 
 }  // namespace mcslam::slam

@@ -13,6 +13,7 @@
 #include "mcslam/features/lines.hpp"
 #include "mcslam/features/matching.hpp"
 #include "mcslam/optim/pose_optimizer.hpp"
+#include "mcslam/place/matching.hpp"
 #include "measurement.hpp"
 
 namespace mcslam::slam {
@@ -118,8 +119,14 @@ const char* to_string(TrackingState state) {
   return "unknown";
 }
 
-Tracker::Tracker(const PinholeCamera& camera, const TrackerOptions& options, const map::Map& map)
-    : camera_(camera), options_(options), map_(map), objects_(camera, options.dynamics) {}
+Tracker::Tracker(const PinholeCamera& camera, const TrackerOptions& options, const map::Map& map,
+                 std::shared_ptr<const place::Vocabulary> vocabulary, int direct_levels_up)
+    : camera_(camera),
+      options_(options),
+      map_(map),
+      vocabulary_(std::move(vocabulary)),
+      direct_levels_up_(direct_levels_up),
+      objects_(camera, options.dynamics) {}
 
 TrackingOutcome Tracker::track(const Frame& frame, bool mapper_idle, std::size_t mapper_queue,
                                StageTimes* times) {
@@ -134,6 +141,7 @@ TrackingOutcome Tracker::track(const Frame& frame, bool mapper_idle, std::size_t
   SE3 T_c_w;
   bool ok = false;
   bool relocalised = false;
+  bool tried_relocalisation = false;
   const auto first_estimate = [&] {
     if (state_ == TrackingState::kOk) {
       const std::optional<SE3> T_last = last_frame_pose();
@@ -151,8 +159,10 @@ TrackingOutcome Tracker::track(const Frame& frame, bool mapper_idle, std::size_t
         ok = track_reference_keyframe(frame, assoc, T_c_w);
       }
     } else {
+      relocalisation_ = RelocalisationInfo{};
       ok = relocalise(frame, assoc, T_c_w);
       relocalised = ok;
+      tried_relocalisation = true;
     }
   };
   // The first estimate leaves out the features of objects known to move; when that leaves too
@@ -201,6 +211,7 @@ TrackingOutcome Tracker::track(const Frame& frame, bool mapper_idle, std::size_t
   TrackingOutcome out;
   out.objects = objects_.outputs(frame);
   out.relocalised = relocalised && ok;
+  if (tried_relocalisation) out.relocalisation = relocalisation_;
   out.matches = assoc.active_points();
   out.inliers = assoc.inlier_points(false);
   out.line_matches = assoc.active_lines();
@@ -844,47 +855,84 @@ int Tracker::remove_movers(const Frame& frame, Associations& assoc, SE3& T_c_w, 
 
 bool Tracker::relocalise(const Frame& frame, Associations& assoc, SE3& T_c_w) {
   struct Candidate {
+    map::KeyFrameId keyframe = map::kNoId;
+    double score = 0.0;
     std::vector<std::pair<int, map::PointId>> correspondences;  // feature, landmark
     std::vector<Eigen::Vector3d> p_w;
   };
   std::vector<Candidate> candidates;
+  const auto add_candidate = [&](const map::KeyFrame& kf,
+                                 const std::vector<features::DescriptorMatch>& found) {
+    if (found.size() < 15) return;
+    Candidate c;
+    c.keyframe = kf.id;
+    for (const auto& m : found) {
+      const map::PointId pid = kf.landmarks[static_cast<std::size_t>(m.train)];
+      c.correspondences.emplace_back(m.query, pid);
+      c.p_w.push_back(map_.point(pid)->p_w);
+    }
+    candidates.push_back(std::move(c));
+  };
+  std::vector<features::OrbDescriptor> query;
+  for (const auto& p : frame.features->points) query.push_back(p.descriptor);
+  const auto n = static_cast<std::size_t>(options_.relocalisation_candidates);
+  Stopwatch watch;
   {
     auto lock = map_.read_lock();
     if (map_.num_keyframes() == 0) return false;
-    // Newest keyframes first, then a spread over the whole map.
-    std::vector<map::KeyFrameId> ids;
-    for (const auto& kv : map_.keyframes()) ids.push_back(kv.first);
-    std::sort(ids.begin(), ids.end(), std::greater<>());
-    const auto n = static_cast<std::size_t>(options_.relocalisation_candidates);
-    std::vector<map::KeyFrameId> chosen(ids.begin(), ids.begin() + std::min(ids.size(), n / 2));
-    if (ids.size() > chosen.size()) {
-      const std::size_t rest = ids.size() - chosen.size();
-      const std::size_t want = std::min(rest, n - chosen.size());
-      for (std::size_t k = 0; k < want; ++k) chosen.push_back(ids[chosen.size() + k * rest / want]);
-    }
-    std::vector<features::OrbDescriptor> query;
-    for (const auto& p : frame.features->points) query.push_back(p.descriptor);
-    for (map::KeyFrameId id : chosen) {
-      const map::KeyFrame* kf = map_.keyframe(id);
-      if (kf == nullptr) continue;
-      std::vector<features::OrbDescriptor> train;
-      std::vector<map::PointId> train_points;
-      for (std::size_t i = 0; i < kf->landmarks.size(); ++i)
-        if (kf->landmarks[i] != map::kNoId && map_.point(kf->landmarks[i]) != nullptr) {
-          train.push_back(kf->features->points[i].descriptor);
-          train_points.push_back(kf->landmarks[i]);
-        }
-      const auto found = features::match_descriptors(query, train, 64, 0.75f, true);
-      if (found.size() < 15) continue;
-      Candidate c;
-      for (const auto& m : found) {
-        const map::PointId pid = train_points[static_cast<std::size_t>(m.train)];
-        c.correspondences.emplace_back(m.query, pid);
-        c.p_w.push_back(map_.point(pid)->p_w);
+    const place::Database* database = map_.database();
+    if (vocabulary_ && database != nullptr && database->size() > 0) {
+      // The keyframe database's best places; features compared only under the same node.
+      const place::BowImage bow = vocabulary_->transform(query, direct_levels_up_);
+      place::WordMatchOptions match;
+      match.max_distance = 64;
+      for (const auto& result : database->query(bow.bow, n)) {
+        const map::KeyFrame* kf = map_.keyframe(result.id);
+        if (kf == nullptr || !kf->bow) continue;
+        std::vector<features::OrbDescriptor> train;
+        train.reserve(kf->features->points.size());
+        for (const auto& p : kf->features->points) train.push_back(p.descriptor);
+        const auto has_landmark = [&](int j) {
+          const map::PointId p = kf->landmarks[static_cast<std::size_t>(j)];
+          return p != map::kNoId && map_.point(p) != nullptr;
+        };
+        add_candidate(*kf, place::match_by_words(bow.direct, query, kf->bow->direct, train, match,
+                                                 {}, has_landmark));
+        if (!candidates.empty() && candidates.back().keyframe == kf->id)
+          candidates.back().score = result.score;
       }
-      candidates.push_back(std::move(c));
+      relocalisation_.by_database = true;
+    } else {
+      // Without a vocabulary: the newest keyframes, then a spread over the whole map.
+      std::vector<map::KeyFrameId> ids;
+      for (const auto& kv : map_.keyframes()) ids.push_back(kv.first);
+      std::sort(ids.begin(), ids.end(), std::greater<>());
+      std::vector<map::KeyFrameId> chosen(ids.begin(), ids.begin() + std::min(ids.size(), n / 2));
+      if (ids.size() > chosen.size()) {
+        const std::size_t rest = ids.size() - chosen.size();
+        const std::size_t want = std::min(rest, n - chosen.size());
+        for (std::size_t k = 0; k < want; ++k)
+          chosen.push_back(ids[chosen.size() + k * rest / want]);
+      }
+      for (map::KeyFrameId id : chosen) {
+        const map::KeyFrame* kf = map_.keyframe(id);
+        if (kf == nullptr) continue;
+        std::vector<features::OrbDescriptor> train;
+        std::vector<int> feature;
+        for (std::size_t i = 0; i < kf->landmarks.size(); ++i)
+          if (kf->landmarks[i] != map::kNoId && map_.point(kf->landmarks[i]) != nullptr) {
+            train.push_back(kf->features->points[i].descriptor);
+            feature.push_back(static_cast<int>(i));
+          }
+        auto found = features::match_descriptors(query, train, 64, 0.75f, true);
+        for (auto& m : found) m.train = feature[static_cast<std::size_t>(m.train)];
+        add_candidate(*kf, found);
+      }
+      relocalisation_.by_database = false;
     }
   }
+  relocalisation_.query_ms = watch.elapsed_ms();
+  relocalisation_.candidates = static_cast<int>(candidates.size());
   std::sort(candidates.begin(), candidates.end(), [](const Candidate& a, const Candidate& b) {
     return a.correspondences.size() > b.correspondences.size();
   });
@@ -924,6 +972,8 @@ bool Tracker::relocalise(const Frame& frame, Associations& assoc, SE3& T_c_w) {
     }
     if (optimize(frame, assoc, pose) < options_.min_pose_inliers) continue;
     T_c_w = pose;
+    relocalisation_.keyframe = c.keyframe;
+    relocalisation_.score = c.score;
     return true;
   }
   assoc.clear();
@@ -990,6 +1040,14 @@ KeyFrameRequest Tracker::make_keyframe(const Frame& frame, const Associations& a
   request.id = next_keyframe_id_++;
   request.frame = frame;
   request.T_c_w = T_c_w;
+  {
+    auto lock = map_.read_lock();
+    request.map_version = map_.version();
+    if (const map::KeyFrame* ref = map_.keyframe(reference_)) {
+      request.reference = reference_;
+      request.T_c_ref = T_c_w * ref->T_c_w.inverse();
+    }
+  }
   request.landmarks.assign(assoc.points.size(), map::kNoId);
   for (std::size_t i = 0; i < assoc.points.size(); ++i)
     if (assoc.points[i].active && !assoc.points[i].outlier)

@@ -37,6 +37,9 @@ struct RunRequest {
   /// Turn Algorithm 1 / Algorithm 2 off while keeping the boxes (for ablations).
   bool no_dynamics = false;
   bool no_constraints = false;
+  /// The bag-of-words vocabulary (overrides place.vocabulary); loop closing off (loop.enabled).
+  std::optional<std::string> vocabulary;
+  bool no_loop_closing = false;
   /// Also write overlays/<frame>.jpg: annotated frames as in the paper's Fig. 7.
   bool save_overlays = false;
   /// Play the sequence this many times in a row as one stream (a soak run): pass k's timestamps

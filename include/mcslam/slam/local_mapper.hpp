@@ -7,6 +7,8 @@
 #include <atomic>
 #include <condition_variable>
 #include <deque>
+#include <functional>
+#include <memory>
 #include <mutex>
 #include <thread>
 #include <vector>
@@ -15,10 +17,14 @@
 #include "mcslam/core/timing.hpp"
 #include "mcslam/map/map.hpp"
 #include "mcslam/optim/bundle_adjustment.hpp"
+#include "mcslam/place/vocabulary.hpp"
+#include "mcslam/slam/loop_closer.hpp"
 #include "mcslam/slam/options.hpp"
 #include "mcslam/slam/tracker.hpp"
 
 namespace mcslam::slam {
+
+struct MapCorrection;  // map_adjustment.hpp
 
 class LocalMapper {
  public:
@@ -29,6 +35,21 @@ class LocalMapper {
   ~LocalMapper();
   LocalMapper(const LocalMapper&) = delete;
   LocalMapper& operator=(const LocalMapper&) = delete;
+
+  /// New keyframes get a bag of words of this vocabulary (with the direct index `levels_up`
+  /// levels above the words) and enter the map's keyframe database. Call before the first
+  /// keyframe.
+  void set_vocabulary(std::shared_ptr<const place::Vocabulary> vocabulary, int levels_up);
+  /// Called on the mapper's thread after each keyframe is processed (loop detection).
+  void set_keyframe_listener(std::function<void(map::KeyFrameId)> listener);
+  /// Runs `task` on the mapper's thread between two keyframes and waits for it (inline when
+  /// the mapper has no thread). Tasks may write the map: the mapper is then its writer.
+  void run_task(const std::function<void()>& task);
+  /// Corrects the map for a verified loop (see LoopCloser). Mapper's thread only (run_task).
+  /// Returns false, with event.reason, when the loop can no longer be applied.
+  bool close_loop(const LoopClosure& loop, const LoopOptions& options, LoopEvent& event);
+  /// Moves keyframes and landmarks (a merged full bundle adjustment). Mapper's thread only.
+  void correct(const MapCorrection& correction);
 
   /// Processes one keyframe inline and records its stage times in `times`.
   void process(KeyFrameRequest request, StageTimes* times = nullptr);
@@ -71,6 +92,12 @@ class LocalMapper {
 
   PinholeCamera camera_;
   MapperOptions options_;
+  std::shared_ptr<const place::Vocabulary> vocabulary_;
+  int direct_levels_up_ = 3;
+  std::function<void(map::KeyFrameId)> listener_;
+  /// The map's version right after the last correction: keyframe requests made before it
+  /// carry poses of the uncorrected map.
+  std::uint64_t corrected_version_ = 0;
   double close_depth_;
   map::Map& map_;
   std::vector<map::PointId> recent_points_;
@@ -80,6 +107,7 @@ class LocalMapper {
   mutable std::mutex queue_mutex_;
   std::condition_variable queue_cv_;
   std::deque<KeyFrameRequest> queue_;
+  std::deque<std::function<void()>> tasks_;
   bool stop_ = false;
   bool busy_ = false;
   std::atomic<bool> abort_ba_{false};

@@ -7,6 +7,7 @@
 #include "mcslam/features/orb.hpp"
 #include "mcslam/features/planes.hpp"
 #include "mcslam/optim/bundle_adjustment.hpp"
+#include "mcslam/optim/pose_graph.hpp"
 #include "mcslam/optim/pose_optimizer.hpp"
 #include "mcslam/slam/dynamics.hpp"
 
@@ -48,7 +49,8 @@ struct TrackerOptions {
   double keyframe_ref_ratio = 0.75;
   int close_tracked_threshold = 100;
   int close_untracked_threshold = 70;
-  /// Relocalisation: keyframes tried per lost frame.
+  /// Relocalisation: keyframes tried per lost frame (the keyframe database's best results; the
+  /// newest and a spread over the map without a vocabulary).
   int relocalisation_candidates = 30;
   /// Frames that need this many keypoints with depth to start the map.
   int min_initial_points = 500;
@@ -116,6 +118,47 @@ struct MapperOptions {
   std::optional<std::string> check() const;
 };
 
+/// Loop closing (its own thread; inline in sequential mode).
+struct LoopOptions {
+  bool enabled = true;
+  /// A map younger than this many keyframes, or this many keyframes after the last loop,
+  /// looks for no loop (ORB-SLAM2's 10).
+  int min_keyframes = 10;
+  /// A candidate place must be found again for this many consecutive keyframes (each one's
+  /// candidates covisible with the previous one's) before it is verified.
+  int min_consistency = 3;
+  /// Matches through the vocabulary's direct index with depth on both sides, needed before
+  /// RANSAC; then inliers of the SE(3) found (u, v and the virtual right coordinate within the
+  /// chi-square 95 % bound of 3 degrees of freedom at the keypoint's level sigma), and after the
+  /// guided search in the matched keyframe's neighbourhood.
+  int min_matches = 20;
+  int min_ransac_inliers = 15;
+  int min_inliers = 40;
+  int ransac_iterations = 300;
+  /// Covisibility edges of at least this weight join the essential graph (ORB-SLAM2's 100).
+  int essential_edge_weight = 100;
+  optim::PoseGraphOptions pose_graph;
+  /// Bundle adjustment of the whole map after a loop (in the background; 0 disables it).
+  int full_ba_iterations = 10;
+
+  std::optional<std::string> check() const;
+};
+
+/// Place recognition: the bag-of-words vocabulary, the keyframe database built with it, and
+/// loop closing. Without a vocabulary ("") relocalisation falls back to matching descriptors
+/// against keyframes directly and loops are not closed.
+struct PlaceOptions {
+  std::string vocabulary = default_vocabulary_path();
+  /// The direct index groups features by their vocabulary node this many levels above the
+  /// words (3 of 5: 100 nodes for a 10-way tree; matching compares features under one node).
+  int direct_levels_up = 3;
+  LoopOptions loop;
+
+  /// The vocabulary file kept in the repository (data/orb_vocabulary.bin of the source tree).
+  static std::string default_vocabulary_path();
+  std::optional<std::string> check() const;
+};
+
 /// Which landmark kinds take part, so that users can compare (all on by default). A kind that is
 /// off is not even extracted. Relocalisation matches points, so it needs `points`.
 struct FeatureSwitches {
@@ -131,6 +174,7 @@ struct SystemOptions {
   features::PlaneOptions planes;
   TrackerOptions tracker;
   MapperOptions mapper;
+  PlaceOptions place;
   /// Run local mapping inline after each keyframe (deterministic) instead of on its own thread.
   bool sequential = false;
   /// A detector model (threaded mode, not waiting for boxes) is given a frame only when at least

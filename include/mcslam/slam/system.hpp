@@ -16,6 +16,7 @@
 #include "mcslam/core/trajectory.hpp"
 #include "mcslam/map/map.hpp"
 #include "mcslam/slam/detection_source.hpp"
+#include "mcslam/slam/loop_closer.hpp"
 #include "mcslam/slam/options.hpp"
 #include "mcslam/slam/tracker.hpp"
 
@@ -27,12 +28,15 @@ namespace mcslam::slam {
 
 class FrameBuilder;
 class LocalMapper;
+class LoopCloser;
 
 struct FrameResult {
   std::uint64_t frame_id = 0;
   double timestamp = 0.0;
   TrackingState state = TrackingState::kNotInitialized;
   bool relocalised = false;
+  /// Set when the frame was lost and relocalisation was tried (how, and what it found).
+  std::optional<RelocalisationInfo> relocalisation;
   bool keyframe = false;
   int features = 0;  // ORB points
   int lines = 0;     // line segments
@@ -67,7 +71,8 @@ struct FrameResult {
 
 class System {
  public:
-  /// Throws InputError when the camera or the options are invalid.
+  /// Throws InputError when the camera or the options are invalid, or the vocabulary file
+  /// (options.place.vocabulary, when not "") cannot be read.
   System(const PinholeCamera& camera, const SystemOptions& options);
   ~System();
   System(const System&) = delete;
@@ -102,6 +107,11 @@ class System {
   const map::Map& map() const { return *map_; }
   /// Stage times of each processed keyframe in the mapper.
   std::vector<StageTimes> mapper_times() const;
+  /// Loops detected, accepted and rejected, and the loop closer's timings (empty without loop
+  /// closing).
+  LoopStatistics loop_statistics() const;
+  /// The vocabulary in use (null without one).
+  const place::Vocabulary* vocabulary() const { return vocabulary_.get(); }
   const PinholeCamera& camera() const { return camera_; }
   const SystemOptions& options() const { return options_; }
 
@@ -120,7 +130,9 @@ class System {
   std::unique_ptr<FrameBuilder> builder_;
   std::unique_ptr<map::Map> map_;
   std::unique_ptr<Tracker> tracker_;
+  std::shared_ptr<const place::Vocabulary> vocabulary_;
   std::unique_ptr<LocalMapper> mapper_;
+  std::unique_ptr<LoopCloser> loop_closer_;
   std::unique_ptr<DetectionSource> detections_;
   bool wait_for_detections_ = true;
   std::vector<FrameRecord> records_;

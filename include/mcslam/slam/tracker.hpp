@@ -5,6 +5,7 @@
 
 #include <cstdint>
 #include <deque>
+#include <memory>
 #include <optional>
 #include <unordered_set>
 #include <vector>
@@ -13,6 +14,7 @@
 #include "mcslam/core/timing.hpp"
 #include "mcslam/map/map.hpp"
 #include "mcslam/optim/constraint_residual.hpp"
+#include "mcslam/place/vocabulary.hpp"
 #include "mcslam/slam/dynamics.hpp"
 #include "mcslam/slam/frame.hpp"
 #include "mcslam/slam/objects.hpp"
@@ -48,6 +50,20 @@ struct KeyFrameRequest {
   std::vector<std::uint8_t> excluded_lines;
   /// Map points seen to move since the last keyframe (find_movers): the mapper removes them.
   std::vector<map::PointId> moved_points;
+  /// The keyframe the pose was tracked against, the pose relative to it, and the map's version
+  /// then: a loop correction after it moves the new keyframe with its reference.
+  map::KeyFrameId reference = map::kNoId;
+  SE3 T_c_ref;
+  std::uint64_t map_version = 0;
+};
+
+/// A relocalisation attempt (a lost frame).
+struct RelocalisationInfo {
+  bool by_database = false;  // candidates from the keyframe database (else brute force)
+  double query_ms = 0.0;     // finding the candidates and their matches
+  int candidates = 0;        // keyframes with enough matches for PnP
+  map::KeyFrameId keyframe = map::kNoId;  // the one that relocalised the frame
+  double score = 0.0;                     // its bag-of-words score
 };
 
 struct TrackingOutcome {
@@ -62,13 +78,18 @@ struct TrackingOutcome {
   int line_inliers = 0;
   int plane_inliers = 0;  // frame planes matched to map planes, after optimisation
   std::optional<KeyFrameRequest> keyframe;
+  /// Set when the frame was lost and relocalisation was tried.
+  std::optional<RelocalisationInfo> relocalisation;
   /// Object handling: boxes, decisions, feature labels (all static without detections).
   ObjectOutputs objects;
 };
 
 class Tracker {
  public:
-  Tracker(const PinholeCamera& camera, const TrackerOptions& options, const map::Map& map);
+  /// With a vocabulary, relocalisation finds its candidates through the map's keyframe
+  /// database (direct index `direct_levels_up` levels above the words).
+  Tracker(const PinholeCamera& camera, const TrackerOptions& options, const map::Map& map,
+          std::shared_ptr<const place::Vocabulary> vocabulary = nullptr, int direct_levels_up = 3);
 
   /// `mapper_idle`: the mapper has nothing queued; `mapper_queue`: keyframes waiting for it.
   TrackingOutcome track(const Frame& frame, bool mapper_idle, std::size_t mapper_queue,
@@ -181,6 +202,9 @@ class Tracker {
   PinholeCamera camera_;
   TrackerOptions options_;
   const map::Map& map_;
+  std::shared_ptr<const place::Vocabulary> vocabulary_;
+  int direct_levels_up_ = 3;
+  RelocalisationInfo relocalisation_;
 
   TrackingState state_ = TrackingState::kNotInitialized;
   std::optional<LastFrame> last_;
