@@ -4,6 +4,7 @@
 #include <bit>
 #include <cmath>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <iterator>
 #include <optional>
@@ -750,6 +751,9 @@ void save_session(const std::string& path, const Map& map, const SessionInfo& in
 }
 
 Session load_session(const std::string& path) {
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec))
+    throw InputError(file_error(path, "is a directory, not a session file"));
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(file_error(path, "cannot open the session file"));
   const std::string data((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());

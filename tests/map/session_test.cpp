@@ -449,6 +449,7 @@ class SessionFileErrors : public ::testing::Test {
 TEST_F(SessionFileErrors, MissingEmptyForeignAndNewerFiles) {
   const std::string missing = dir_.file("missing.session");
   test::expect_input_error([&] { load_session(missing); }, {missing, "cannot open"});
+  test::expect_input_error([&] { load_session(dir_.str()); }, {dir_.str(), "is a directory"});
   expect_error("empty.session", "", {"empty file"});
   expect_error("foreign.session", "PK\x03\x04 not a session at all, just some bytes",
                {"not an mcslam session"});
