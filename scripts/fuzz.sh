@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Fuzzes mcslam's parsers with libFuzzer (clang, AddressSanitizer + UBSan): the sequence lists,
-# the settings files, TUM trajectories, detections files and vocabulary files. Each fuzzer starts from its seed
-# corpus in fuzz/corpus/<name>/ (kept in the repository) and runs for SECONDS (default 60); new
-# inputs go to build-fuzz/corpus/<name>/, crashes to build-fuzz/artifacts/. Exit 1 on a crash.
+# the settings files, TUM trajectories, detections files, vocabulary files and map session files.
+# Each fuzzer starts from its seed corpus in fuzz/corpus/<name>/ (kept in the repository) and runs
+# for SECONDS (default 60); new inputs go to build-fuzz/corpus/<name>/, crashes to
+# build-fuzz/artifacts/. Exit 1 on a crash.
 # SECONDS 0 replays the seed corpora once (every input, including the ones that once crashed or
 # hung): the quick regression check CI runs.
 # Usage: scripts/fuzz.sh [SECONDS] [NAME...]
@@ -11,7 +12,7 @@ cd "$(dirname "$0")/.."
 seconds="${1:-60}"
 shift || true
 names=("$@")
-[ ${#names[@]} -gt 0 ] || names=(sequence_lists settings trajectory detections vocabulary)
+[ ${#names[@]} -gt 0 ] || names=(sequence_lists settings trajectory detections vocabulary session)
 bash scripts/install-deps.sh > /dev/null
 cmake --preset fuzz > /dev/null
 cmake --build --preset fuzz -j "$(nproc)"

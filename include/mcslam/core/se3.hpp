@@ -35,6 +35,15 @@ class SE3 {
       : q_(Eigen::Quaterniond(R).normalized()), t_(t) {}
 
   static SE3 identity() { return SE3(); }
+  /// A pose from a quaternion that is already unit to rounding (one read back from a file that
+  /// an SE3 was written to): kept bit for bit, not renormalised, so that a saved pose reads back
+  /// exactly. Renormalising a unit quaternion can change its last bits.
+  static SE3 from_unit_quaternion(const Eigen::Quaterniond& q, const Eigen::Vector3d& t) {
+    SE3 T;
+    T.q_ = q;
+    T.t_ = t;
+    return T;
+  }
   /// exp([rho; phi]) with the SE(3) left Jacobian coupling rho into the translation.
   static SE3 exp(const Vector6d& xi);
   /// From a 4x4 homogeneous matrix whose 3x3 block is a rotation (not re-orthonormalised).

@@ -215,6 +215,54 @@ class Map {
   void replace_plane(PlaneId old_plane, PlaneId new_plane);
   void bump_version() { ++version_; }
 
+  // --- sessions (map/session.hpp): what saving reads beyond the reads above, and restoring a
+  // saved map exactly (ids, links and counters as they were) ---
+  struct Counters {
+    KeyFrameId next_keyframe = 0;
+    PointId next_point = 0;
+    LineId next_line = 0;
+    PlaneId next_plane = 0;
+    KeyFrameId last_keyframe = kNoId;
+    std::uint64_t version = 0;
+  };
+  Counters counters() const {
+    return {next_keyframe_id_, next_point_id_, next_line_id_,
+            next_plane_id_,    last_keyframe_, version_};
+  }
+  const std::unordered_map<KeyFrameId, ErasedKeyFrame>& erased_keyframes() const {
+    return erased_keyframes_;
+  }
+  /// Insert an element as it is, under its own id (replacing one with that id): landmark slots,
+  /// observations and covisibility are kept, nothing is recomputed or checked (load_session
+  /// checks the whole map) and neither the counters nor the version change.
+  void restore_keyframe(KeyFrame keyframe) {
+    const KeyFrameId id = keyframe.id;
+    keyframes_.insert_or_assign(id, std::move(keyframe));
+  }
+  void restore_point(MapPoint point) {
+    const PointId id = point.id;
+    points_.insert_or_assign(id, std::move(point));
+  }
+  void restore_line(MapLine line) {
+    const LineId id = line.id;
+    lines_.insert_or_assign(id, std::move(line));
+  }
+  void restore_plane(MapPlane plane) {
+    const PlaneId id = plane.id;
+    planes_.insert_or_assign(id, std::move(plane));
+  }
+  void restore_erased_keyframe(KeyFrameId id, const ErasedKeyFrame& erased) {
+    erased_keyframes_.insert_or_assign(id, erased);
+  }
+  void restore_counters(const Counters& counters) {
+    next_keyframe_id_ = counters.next_keyframe;
+    next_point_id_ = counters.next_point;
+    next_line_id_ = counters.next_line;
+    next_plane_id_ = counters.next_plane;
+    last_keyframe_ = counters.last_keyframe;
+    version_ = counters.version;
+  }
+
  private:
   mutable std::shared_mutex mutex_;
   std::unordered_map<KeyFrameId, KeyFrame> keyframes_;
