@@ -183,6 +183,13 @@ int main(int argc, char** argv) {
                       "Bag-of-words vocabulary file (default: place.vocabulary, the one in data/)");
   run_cmd->add_flag("--no-loop-closing", run.no_loop_closing,
                     "Do not close loops (relocalisation still uses the vocabulary)");
+  run_cmd->add_option("--save-session", run.save_session,
+                      "Write the whole map to FILE at the end (versioned binary, checksummed)");
+  run_cmd->add_option("--load-session", run.load_session,
+                      "Start from the map in FILE (made with the same camera and vocabulary): the "
+                      "run relocalises into it and maps on");
+  run_cmd->add_flag("--localize", run.localize,
+                    "With --load-session: track against the loaded map without changing it");
   run_cmd->add_flag("--save-overlays", run.save_overlays,
                     "Write annotated frames to overlays/ (points, lines, objects and decisions)");
   run_cmd

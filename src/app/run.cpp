@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -21,8 +22,10 @@
 #include "mcslam/io/sequence.hpp"
 #include "mcslam/io/trajectory_io.hpp"
 #include "mcslam/map/export.hpp"
+#include "mcslam/map/session.hpp"
 #include "mcslam/perception/detection.hpp"
 #include "mcslam/perception/detector.hpp"
+#include "mcslam/place/vocabulary.hpp"
 #include "mcslam/slam/config.hpp"
 #include "mcslam/slam/system.hpp"
 
@@ -205,6 +208,40 @@ void apply_feature_list(const std::string& list, bool& points, bool& lines, bool
 
 namespace {
 
+/// A session file whose map can continue in this run: same camera, ORB pyramid and vocabulary.
+std::unique_ptr<map::Map> load_compatible_session(const std::string& path,
+                                                  const slam::RunConfig& config) {
+  map::Session session = map::load_session(path);
+  const PinholeCamera& a = session.info.camera;
+  const PinholeCamera& b = config.camera;
+  const auto close = [](double x, double y) {
+    return std::abs(x - y) <= 1e-6 * (1.0 + std::abs(y));
+  };
+  if (a.width != b.width || a.height != b.height || !close(a.fx, b.fx) || !close(a.fy, b.fy) ||
+      !close(a.cx, b.cx) || !close(a.cy, b.cy) || !close(a.bf, b.bf))
+    throw InputError(file_error(path, "the map was made with another camera (" +
+                                          std::to_string(a.width) + "x" + std::to_string(a.height) +
+                                          ", fx " + std::to_string(a.fx) + ") than this run's (" +
+                                          std::to_string(b.width) + "x" + std::to_string(b.height) +
+                                          ", fx " + std::to_string(b.fx) + ")"));
+  if (session.info.orb_levels != config.options.orb.num_levels ||
+      !close(session.info.orb_scale_factor, config.options.orb.scale_factor))
+    throw InputError(file_error(path, "the map was made with other ORB pyramid settings (" +
+                                          std::to_string(session.info.orb_levels) + " levels)"));
+  std::uint64_t vocabulary_id = 0;
+  if (!config.options.place.vocabulary.empty())
+    vocabulary_id = place::Vocabulary::load(config.options.place.vocabulary).id();
+  if (session.info.vocabulary_id != vocabulary_id) {
+    char ids[80];
+    std::snprintf(ids, sizeof(ids), "%016llx, this run's is %016llx",
+                  static_cast<unsigned long long>(session.info.vocabulary_id),
+                  static_cast<unsigned long long>(vocabulary_id));
+    throw InputError(
+        file_error(path, std::string("the map was made with another vocabulary (id ") + ids + ")"));
+  }
+  return std::move(session.map);
+}
+
 /// Loops for summary.json: counts, every verified candidate with its figures, timings.
 nlohmann::json loops_json(const slam::LoopStatistics& stats, const slam::PlaceOptions& place) {
   nlohmann::json events = nlohmann::json::array();
@@ -373,10 +410,12 @@ struct StageTable {
 nlohmann::json run_frames(const RunRequest& request, const io::RgbdSequence& sequence,
                           const StreamPlan& plan, std::size_t total, const slam::RunConfig& config,
                           std::unique_ptr<slam::DetectionSource> detection_source,
+                          std::unique_ptr<map::Map> initial_map,
                           const std::optional<Trajectory>& groundtruth, RunStatus& status) {
   namespace fs = std::filesystem;
   const fs::path out(request.output_dir);
-  slam::System system(config.camera, config.options);
+  const bool from_session = initial_map != nullptr;
+  slam::System system(config.camera, config.options, std::move(initial_map));
   std::string detection_description;
   if (detection_source) {
     detection_description = detection_source->describe();
@@ -476,7 +515,8 @@ nlohmann::json run_frames(const RunRequest& request, const io::RgbdSequence& seq
                                 {"keyframe", r.relocalisation->keyframe},
                                 {"score", r.relocalisation->score},
                                 {"candidates", r.relocalisation->candidates},
-                                {"query_ms", r.relocalisation->query_ms}});
+                                {"query_ms", r.relocalisation->query_ms},
+                                {"match_ms", r.relocalisation->match_ms}});
     }
     keyframes_inserted += r.keyframe ? 1 : 0;
     tracking_ms.push_back(r.times.total_ms());
@@ -563,6 +603,7 @@ nlohmann::json run_frames(const RunRequest& request, const io::RgbdSequence& seq
   if (plan.passes > 1 && done > passes.size() * plan.frames_per_pass) record_pass();  // stopped
   system.finish();
   const double wall_s = wall.elapsed_ms() / 1000.0;
+  if (request.save_session) system.save_session(*request.save_session);
   const std::size_t processed = done;
 
   // Outputs.
@@ -611,6 +652,10 @@ nlohmann::json run_frames(const RunRequest& request, const io::RgbdSequence& seq
                                  {"events", reloc_events}};
   }
   summary["loops"] = loops_json(system.loop_statistics(), config.options.place);
+  summary["session"] = {{"loaded", request.load_session.value_or("")},
+                        {"localize", config.options.localize},
+                        {"saved", request.save_session.value_or("")}};
+  (void)from_session;
   summary["keyframes_inserted"] = keyframes_inserted;
   {
     auto lock = system.map().read_lock();
@@ -752,6 +797,11 @@ nlohmann::json run_sequence(const RunRequest& request) {
     std::cerr << "mcslam: warning: " << warning << "\n";
   slam::RunConfig config = slam::resolve_run_config(request.sequence_dir, request.config_path);
   if (request.sequential) config.options.sequential = *request.sequential;
+  if (request.vocabulary) config.options.place.vocabulary = *request.vocabulary;
+  if (request.no_loop_closing) config.options.place.loop.enabled = false;
+  if (request.localize && !request.load_session)
+    throw InputError("--localize: give the map to localise in with --load-session FILE");
+  config.options.localize = request.localize;
   if (request.features)
     apply_feature_list(*request.features, config.options.use.points, config.options.use.lines,
                        config.options.use.planes);
@@ -770,8 +820,8 @@ nlohmann::json run_sequence(const RunRequest& request) {
 
   if (request.no_dynamics) config.options.tracker.dynamics.enabled = false;
   if (request.no_constraints) config.options.tracker.dynamics.constraints = false;
-  if (request.vocabulary) config.options.place.vocabulary = *request.vocabulary;
-  if (request.no_loop_closing) config.options.place.loop.enabled = false;
+  std::unique_ptr<map::Map> initial_map;
+  if (request.load_session) initial_map = load_compatible_session(*request.load_session, config);
   std::unique_ptr<slam::DetectionSource> detection_source =
       make_detection_source(request, config.camera, config.options);
   if (!detection_source)
@@ -784,7 +834,7 @@ nlohmann::json run_sequence(const RunRequest& request) {
   RunStatus status((out / "status.json").string(), total);
   try {
     return run_frames(request, sequence, plan, total, config, std::move(detection_source),
-                      groundtruth, status);
+                      std::move(initial_map), groundtruth, status);
   } catch (const InputError& e) {
     status.failed(e.what());
     throw;

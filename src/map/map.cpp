@@ -201,6 +201,18 @@ void Map::enable_database(int words) {
     if (kf.bow) database_->add(id, kf.bow->bow);
 }
 
+void Map::set_keyframe_bow(KeyFrameId id, std::shared_ptr<const place::BowImage> bow) {
+  auto it = keyframes_.find(id);
+  if (it == keyframes_.end()) return;
+  it->second.bow = std::move(bow);
+  if (database_) {
+    if (it->second.bow)
+      database_->add(id, it->second.bow->bow);
+    else
+      database_->erase(id);
+  }
+}
+
 void Map::add_loop_edge(KeyFrameId a, KeyFrameId b) {
   auto ia = keyframes_.find(a);
   auto ib = keyframes_.find(b);

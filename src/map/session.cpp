@@ -182,6 +182,7 @@ void write_keyframe(Writer& w, const KeyFrame& kf) {
     w.put<std::uint64_t>(other);
     w.put<std::int32_t>(weight);
   }
+  w.ids(std::vector<KeyFrameId>(kf.loop_edges.begin(), kf.loop_edges.end()));  // sorted (a set)
 }
 
 template <typename Element>
@@ -306,6 +307,11 @@ std::optional<std::string> check_map(const Map& map, const SessionInfo& info) {
       if (other == id || map.keyframe(other) == nullptr || weight <= 0)
         return name + " has a covisibility edge to " + kf_name(other) + " of weight " +
                std::to_string(weight);
+    for (KeyFrameId other : kf.loop_edges) {
+      const KeyFrame* o = map.keyframe(other);
+      if (other == id || o == nullptr || o->loop_edges.count(id) == 0)
+        return name + " has a loop edge to " + kf_name(other) + " that is not returned";
+    }
   }
   const auto points_of = [](const KeyFrame& kf) { return kf.features->points.size(); };
   const auto lines_of = [](const KeyFrame& kf) { return kf.features->lines.size(); };
@@ -560,6 +566,7 @@ KeyFrame read_keyframe(Reader& r, const SessionInfo& info,
   kf.excluded_lines = r.flags("excluded line");
   const std::map<KeyFrameId, int> covisible = r.links("covisibility edges");
   kf.covisibility.insert(covisible.begin(), covisible.end());
+  for (KeyFrameId other : r.ids("loop edge")) kf.loop_edges.insert(other);
   return kf;
 }
 

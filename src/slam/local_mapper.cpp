@@ -63,8 +63,20 @@ void LocalMapper::set_vocabulary(std::shared_ptr<const place::Vocabulary> vocabu
   direct_levels_up_ = levels_up;
   if (vocabulary_) {
     auto lock = map_.write_lock();
+    // Keyframes of a map made earlier get their bags of words now.
+    std::vector<map::KeyFrameId> ids;
+    for (const auto& kv : map_.keyframes()) ids.push_back(kv.first);
+    for (map::KeyFrameId id : ids) map_.set_keyframe_bow(id, bag_of_words(*map_.keyframe(id)));
     map_.enable_database(vocabulary_->words());
   }
+}
+
+std::shared_ptr<const place::BowImage> LocalMapper::bag_of_words(const map::KeyFrame& kf) const {
+  std::vector<features::OrbDescriptor> descriptors;
+  descriptors.reserve(kf.features->points.size());
+  for (const auto& p : kf.features->points) descriptors.push_back(p.descriptor);
+  return std::make_shared<const place::BowImage>(
+      vocabulary_->transform(descriptors, direct_levels_up_, kf.excluded_points));
 }
 
 void LocalMapper::set_keyframe_listener(std::function<void(map::KeyFrameId)> listener) {
@@ -187,13 +199,7 @@ void LocalMapper::insert_keyframe(const KeyFrameRequest& request) {
   kf.features = request.frame.features;
   kf.excluded_points = request.excluded_points;
   kf.excluded_lines = request.excluded_lines;
-  if (vocabulary_) {
-    std::vector<features::OrbDescriptor> descriptors;
-    descriptors.reserve(kf.features->points.size());
-    for (const auto& p : kf.features->points) descriptors.push_back(p.descriptor);
-    kf.bow = std::make_shared<const place::BowImage>(
-        vocabulary_->transform(descriptors, direct_levels_up_, kf.excluded_points));
-  }
+  if (vocabulary_) kf.bow = bag_of_words(kf);
   const map::KeyFrameId id = map_.add_keyframe(std::move(kf));
   for (std::size_t i = 0; i < request.landmarks.size(); ++i) {
     const map::PointId p = request.landmarks[i];

@@ -157,8 +157,16 @@ void apply_adjustment(map::Map& map, const MapAdjustment& a,
   for (const auto& kv : a.pose_index) map.update_covisibility(kv.first);
 }
 
-MapCorrection correction_of(const MapAdjustment& solved, const std::vector<SE3>& poses_before) {
+MapCorrection correction_of(const MapAdjustment& solved,
+                            const optim::BundleAdjustmentResult& result,
+                            const std::vector<SE3>& poses_before) {
   MapCorrection c;
+  for (std::size_t k = 0; k < solved.observation_ids.size(); ++k)
+    if (!result.inlier[k]) c.point_outliers.push_back(solved.observation_ids[k]);
+  for (std::size_t k = 0; k < solved.line_observation_ids.size(); ++k)
+    if (!result.line_inlier[k]) c.line_outliers.push_back(solved.line_observation_ids[k]);
+  for (std::size_t k = 0; k < solved.plane_observation_ids.size(); ++k)
+    if (!result.plane_inlier[k]) c.plane_outliers.push_back(solved.plane_observation_ids[k]);
   for (const auto& [kf_id, index] : solved.pose_index) {
     const auto k = static_cast<std::size_t>(index);
     c.before.emplace(kf_id, poses_before[k]);
@@ -176,6 +184,12 @@ MapCorrection correction_of(const MapAdjustment& solved, const std::vector<SE3>&
 
 void apply_correction(map::Map& map, const MapCorrection& correction) {
   if (correction.after.empty()) return;
+  for (const auto& [kf, point] : correction.point_outliers)
+    if (map.point(point) != nullptr) map.erase_observation(point, kf);
+  for (const auto& [kf, line] : correction.line_outliers)
+    if (map.line(line) != nullptr) map.erase_line_observation(line, kf);
+  for (const auto& [kf, plane] : correction.plane_outliers)
+    if (map.plane(plane) != nullptr) map.erase_plane_observation(plane, kf);
   // Old and new pose of every keyframe.
   struct Move {
     SE3 old_T_c_w;

@@ -53,12 +53,18 @@ struct MapCorrection {
   std::unordered_map<map::PointId, Eigen::Vector3d> points;
   std::unordered_map<map::LineId, std::pair<Eigen::Vector3d, Eigen::Vector3d>> lines;
   std::unordered_map<map::PlaneId, Eigen::Vector4d> planes;
+  /// Observations found to be outliers (erased first).
+  std::vector<std::pair<map::KeyFrameId, map::PointId>> point_outliers;
+  std::vector<std::pair<map::KeyFrameId, map::LineId>> line_outliers;
+  std::vector<std::pair<map::KeyFrameId, map::PlaneId>> plane_outliers;
 };
 
 /// Call under the map's write lock.
 void apply_correction(map::Map& map, const MapCorrection& correction);
 
 /// The correction that an adjustment's solved problem makes (poses before: as built).
-MapCorrection correction_of(const MapAdjustment& solved, const std::vector<SE3>& poses_before);
+MapCorrection correction_of(const MapAdjustment& solved,
+                            const optim::BundleAdjustmentResult& result,
+                            const std::vector<SE3>& poses_before);
 
 }  // namespace mcslam::slam

@@ -7,18 +7,24 @@
 
 #include "mcslam/core/error.hpp"
 #include "mcslam/io/undistort.hpp"
+#include "mcslam/map/session.hpp"
 #include "mcslam/slam/frame.hpp"
 #include "mcslam/slam/local_mapper.hpp"
 
 namespace mcslam::slam {
 
-System::System(const PinholeCamera& camera, const SystemOptions& options)
+System::System(const PinholeCamera& camera, const SystemOptions& options,
+               std::unique_ptr<map::Map> initial_map)
     : camera_(camera), options_(options) {
   if (auto e = camera.check()) throw InputError("camera: " + *e);
   if (auto e = options.check()) throw InputError("options: " + *e);
+  if (options_.localize && !initial_map)
+    throw InputError("options: localize needs a map made earlier (--load-session)");
+  const bool from_map = initial_map != nullptr;
+  if (options_.localize) options_.place.loop.enabled = false;
   undistorter_ = std::make_unique<io::Undistorter>(camera_);
   builder_ = std::make_unique<FrameBuilder>(camera_, options_);
-  map_ = std::make_unique<map::Map>();
+  map_ = from_map ? std::move(initial_map) : std::make_unique<map::Map>();
   if (!options_.place.vocabulary.empty())
     vocabulary_ = std::make_shared<const place::Vocabulary>(
         place::Vocabulary::load(options_.place.vocabulary));
@@ -28,6 +34,7 @@ System::System(const PinholeCamera& camera, const SystemOptions& options)
   mapper_ =
       std::make_unique<LocalMapper>(camera_, options_.mapper, options_.tracker, close_depth, *map_);
   if (vocabulary_) mapper_->set_vocabulary(vocabulary_, options_.place.direct_levels_up);
+  if (from_map) tracker_->start_in_map(map_->counters().next_keyframe, options_.localize);
   if (vocabulary_ && options_.place.loop.enabled) {
     loop_closer_ =
         std::make_unique<LoopCloser>(camera_, options_.place.loop, options_.tracker,
@@ -203,7 +210,8 @@ void System::finish() {
     loop_closer_->finish();
   }
   mapper_->finish();
-  if (options_.mapper.global_ba_iterations > 0) mapper_->global_bundle_adjustment();
+  if (options_.mapper.global_ba_iterations > 0 && !options_.localize)
+    mapper_->global_bundle_adjustment();
 }
 
 Trajectory System::trajectory() const {
@@ -235,6 +243,16 @@ Trajectory System::keyframe_trajectory() const {
 }
 
 std::vector<StageTimes> System::mapper_times() const { return mapper_->keyframe_times(); }
+
+void System::save_session(const std::string& path) const {
+  map::SessionInfo info;
+  info.camera = camera_;
+  info.vocabulary_id = vocabulary_ ? vocabulary_->id() : 0;
+  info.orb_levels = options_.orb.num_levels;
+  info.orb_scale_factor = options_.orb.scale_factor;
+  auto lock = map_->read_lock();
+  map::save_session(path, *map_, info);
+}
 
 LoopStatistics System::loop_statistics() const {
   return loop_closer_ ? loop_closer_->statistics() : LoopStatistics{};

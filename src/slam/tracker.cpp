@@ -236,7 +236,7 @@ TrackingOutcome Tracker::track(const Frame& frame, bool mapper_idle, std::size_t
   out.state = state_;
   out.T_c_w = T_c_w;
   out.reference = reference_;
-  if (need_keyframe(frame, assoc, mapper_idle, mapper_queue)) {
+  if (!localize_ && need_keyframe(frame, assoc, mapper_idle, mapper_queue)) {
     out.keyframe = make_keyframe(frame, assoc, T_c_w);
     out.reference = out.keyframe->id;
   }
@@ -280,6 +280,12 @@ TrackingOutcome Tracker::initialize(const Frame& frame) {
   objects_.forget();
   objects_.remember(frame, SE3());
   return out;
+}
+
+void Tracker::start_in_map(map::KeyFrameId next_keyframe_id, bool localize) {
+  state_ = TrackingState::kLost;
+  next_keyframe_id_ = next_keyframe_id;
+  localize_ = localize;
 }
 
 std::optional<SE3> Tracker::predicted_motion(double dt) const {
@@ -884,9 +890,12 @@ bool Tracker::relocalise(const Frame& frame, Associations& assoc, SE3& T_c_w) {
     if (vocabulary_ && database != nullptr && database->size() > 0) {
       // The keyframe database's best places; features compared only under the same node.
       const place::BowImage bow = vocabulary_->transform(query, direct_levels_up_);
+      const auto results = database->query(bow.bow, n);
+      relocalisation_.query_ms = watch.elapsed_ms();
+      watch.restart();
       place::WordMatchOptions match;
       match.max_distance = 64;
-      for (const auto& result : database->query(bow.bow, n)) {
+      for (const auto& result : results) {
         const map::KeyFrame* kf = map_.keyframe(result.id);
         if (kf == nullptr || !kf->bow) continue;
         std::vector<features::OrbDescriptor> train;
@@ -931,7 +940,7 @@ bool Tracker::relocalise(const Frame& frame, Associations& assoc, SE3& T_c_w) {
       relocalisation_.by_database = false;
     }
   }
-  relocalisation_.query_ms = watch.elapsed_ms();
+  relocalisation_.match_ms = watch.elapsed_ms();
   relocalisation_.candidates = static_cast<int>(candidates.size());
   std::sort(candidates.begin(), candidates.end(), [](const Candidate& a, const Candidate& b) {
     return a.correspondences.size() > b.correspondences.size();

@@ -159,6 +159,7 @@ void build_map(Map& map, std::uint64_t seed) {
     map.add_plane_observation(id, 7, (p + 1) % kPlanes);
   }
   for (const KeyFrameId id : ids) map.update_covisibility(id);
+  map.add_loop_edge(0, 7);
   map.erase_point(4);
   map.erase_keyframe(3);
 }
@@ -259,6 +260,7 @@ void expect_same_map(const Map& a, const Map& b) {
     EXPECT_EQ(other->excluded_points, kf.excluded_points);
     EXPECT_EQ(other->excluded_lines, kf.excluded_lines);
     EXPECT_EQ(other->covisibility, kf.covisibility);
+    EXPECT_EQ(other->loop_edges, kf.loop_edges);
   }
   ASSERT_EQ(a.num_points(), b.num_points());
   for (const auto& [id, p] : a.points()) {
@@ -562,6 +564,7 @@ struct Handmade {
       b.u64(0).u64(0).u64(0).u64(0);  // line and plane landmarks, exclusions
       b.u64(covisible);
       if (covisible != 0) b.u64(5).i32(10);
+      b.u64(0);  // no loop edges
     }
     // One map point.
     b.u64(1).u64(0).f64(point_x).f64(0.2).f64(3.0).zeros(32);

@@ -40,6 +40,11 @@ struct RunRequest {
   /// The bag-of-words vocabulary (overrides place.vocabulary); loop closing off (loop.enabled).
   std::optional<std::string> vocabulary;
   bool no_loop_closing = false;
+  /// Write the map as a session file at the end (--save-session); start from one
+  /// (--load-session: same camera, ORB settings and vocabulary), only reading it (--localize).
+  std::optional<std::string> save_session;
+  std::optional<std::string> load_session;
+  bool localize = false;
   /// Also write overlays/<frame>.jpg: annotated frames as in the paper's Fig. 7.
   bool save_overlays = false;
   /// Play the sequence this many times in a row as one stream (a soak run): pass k's timestamps

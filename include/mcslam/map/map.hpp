@@ -164,6 +164,8 @@ class Map {
   /// Starts the keyframe database for a vocabulary of `words` words (keyframes already in the
   /// map with a bag of words are added).
   void enable_database(int words);
+  /// Sets a keyframe's bag of words (and its database entry).
+  void set_keyframe_bow(KeyFrameId id, std::shared_ptr<const place::BowImage> bow);
   /// Records a loop closed between two keyframes (an edge of the essential graph).
   void add_loop_edge(KeyFrameId a, KeyFrameId b);
   /// Keeps keyframe.id when it is set and unused (the tracker numbers keyframes); otherwise

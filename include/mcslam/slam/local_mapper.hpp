@@ -37,8 +37,8 @@ class LocalMapper {
   LocalMapper& operator=(const LocalMapper&) = delete;
 
   /// New keyframes get a bag of words of this vocabulary (with the direct index `levels_up`
-  /// levels above the words) and enter the map's keyframe database. Call before the first
-  /// keyframe.
+  /// levels above the words) and enter the map's keyframe database; so do the keyframes already
+  /// in the map (a loaded session). Call before the first keyframe.
   void set_vocabulary(std::shared_ptr<const place::Vocabulary> vocabulary, int levels_up);
   /// Called on the mapper's thread after each keyframe is processed (loop detection).
   void set_keyframe_listener(std::function<void(map::KeyFrameId)> listener);
@@ -71,6 +71,8 @@ class LocalMapper {
 
  private:
   void run();
+  /// The keyframe's bag of words (its moving objects' points left out).
+  std::shared_ptr<const place::BowImage> bag_of_words(const map::KeyFrame& kf) const;
   void insert_keyframe(const KeyFrameRequest& request);
   void create_points(map::KeyFrameId id, const cv::Mat& color);
   /// New map lines from the keyframe's 3D segments that no map line explains.

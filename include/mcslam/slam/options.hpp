@@ -175,6 +175,9 @@ struct SystemOptions {
   TrackerOptions tracker;
   MapperOptions mapper;
   PlaceOptions place;
+  /// With a map made earlier (System's initial map): track against it without changing it (no
+  /// keyframes, no mapping, no loop closing). Set by `mcslam run --localize`.
+  bool localize = false;
   /// Run local mapping inline after each keyframe (deterministic) instead of on its own thread.
   bool sequential = false;
   /// A detector model (threaded mode, not waiting for boxes) is given a frame only when at least

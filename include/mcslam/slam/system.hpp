@@ -73,7 +73,11 @@ class System {
  public:
   /// Throws InputError when the camera or the options are invalid, or the vocabulary file
   /// (options.place.vocabulary, when not "") cannot be read.
-  System(const PinholeCamera& camera, const SystemOptions& options);
+  /// `initial_map`, when given, is a map made earlier (a loaded session, built with the same
+  /// camera, ORB settings and vocabulary: the caller checks): tracking starts by relocalising
+  /// into it, then mapping goes on in it (or, with options.localize, it is only read).
+  System(const PinholeCamera& camera, const SystemOptions& options,
+         std::unique_ptr<map::Map> initial_map = nullptr);
   ~System();
   System(const System&) = delete;
   System& operator=(const System&) = delete;
@@ -110,6 +114,8 @@ class System {
   /// Loops detected, accepted and rejected, and the loop closer's timings (empty without loop
   /// closing).
   LoopStatistics loop_statistics() const;
+  /// Writes the map as a session file (map/session.hpp); call after finish(). Throws InputError.
+  void save_session(const std::string& path) const;
   /// The vocabulary in use (null without one).
   const place::Vocabulary* vocabulary() const { return vocabulary_.get(); }
   const PinholeCamera& camera() const { return camera_; }

@@ -60,7 +60,8 @@ struct KeyFrameRequest {
 /// A relocalisation attempt (a lost frame).
 struct RelocalisationInfo {
   bool by_database = false;  // candidates from the keyframe database (else brute force)
-  double query_ms = 0.0;     // finding the candidates and their matches
+  double query_ms = 0.0;     // finding the candidate keyframes (the database query)
+  double match_ms = 0.0;     // matching the frame's features with theirs
   int candidates = 0;        // keyframes with enough matches for PnP
   map::KeyFrameId keyframe = map::kNoId;  // the one that relocalised the frame
   double score = 0.0;                     // its bag-of-words score
@@ -96,6 +97,10 @@ class Tracker {
                         StageTimes* times = nullptr);
 
   TrackingState state() const { return state_; }
+  /// Starts in a map made earlier (a loaded session): the first frames relocalise into it, and
+  /// new keyframes are numbered after its own. With `localize`, no keyframe is ever requested:
+  /// the map is only read.
+  void start_in_map(map::KeyFrameId next_keyframe_id, bool localize);
   /// The camera's motion over `dt` seconds at the current velocity estimate, as the transform
   /// from the camera at time t to the camera at t + dt; nullopt without an estimate.
   std::optional<SE3> predicted_motion(double dt) const;
@@ -211,6 +216,7 @@ class Tracker {
   std::optional<SE3> velocity_;  // T_cur_last of the last tracked step
   double velocity_dt_ = 0.0;     // its duration in seconds
   map::KeyFrameId next_keyframe_id_ = 0;
+  bool localize_ = false;
   std::uint64_t last_keyframe_frame_ = 0;
   std::uint64_t last_relocalisation_frame_ = 0;
   // Local map of the current frame.
