@@ -158,6 +158,14 @@ RunRecord score_run(const RunSpec& spec, const std::string& relative_output,
     r.fps = number_at(summary, {"frames_per_second"});
     r.tracking_ms = number_at(summary, {"stages", "tracking_total", "median_ms"});
     r.dynamics_ms = number_at(summary, {"stages", "dynamics", "mean_ms"});
+    r.keyframes = number_at(summary, {"keyframes_in_map"});
+    r.loops_verified = number_at(summary, {"loops", "detected"});
+    r.loops_accepted = number_at(summary, {"loops", "accepted"});
+    if (number_at(summary, {"loops", "keyframes_checked"}).value_or(0) > 0)
+      r.loop_detection_ms = number_at(summary, {"loops", "detection_median_ms"});
+    r.relocalisations = number_at(summary, {"relocalisations"});
+    if (number_at(summary, {"relocalisation", "attempts"}).value_or(0) > 0)
+      r.relocalisation_query_ms = number_at(summary, {"relocalisation", "query_median_ms"});
     std::vector<std::string> order = {"image_load"};
     for (const std::string& s : stage_order(dir / "timings.csv"))
       if (s != "image_load") order.push_back(s);
@@ -227,6 +235,15 @@ void summarise(ConfigResult& c) {
   c.fps = collect(speed, &RunRecord::fps);
   c.tracking_ms = collect(speed, &RunRecord::tracking_ms);
   if (const auto d = collect(speed, &RunRecord::dynamics_ms)) c.dynamics_ms = d->median;
+  std::vector<const RunRecord*> all;
+  for (const RunRecord& r : c.runs)
+    if (r.ok) all.push_back(&r);
+  c.keyframes = collect(all, &RunRecord::keyframes);
+  c.loops_verified = collect(all, &RunRecord::loops_verified);
+  c.loops_accepted = collect(all, &RunRecord::loops_accepted);
+  c.loop_detection_ms = collect(all, &RunRecord::loop_detection_ms);
+  c.relocalisations = collect(all, &RunRecord::relocalisations);
+  c.relocalisation_query_ms = collect(all, &RunRecord::relocalisation_query_ms);
   c.stages_ms.clear();
   if (!speed.empty()) {
     for (const auto& [name, ms] : speed.front()->stages_ms) {
@@ -309,6 +326,19 @@ std::string markdown(const BenchMeta& meta, const std::vector<SequenceResult>& s
          << cell(c.tracking_ms, 1, spd) << " |\n";
       for (const RunRecord& r : c.runs)
         if (!r.ok) failed.push_back(&r);
+    }
+
+    // Place recognition: loops and relocalisations.
+    md << "\nPlace recognition (all runs):\n\n| configuration | keyframes | loops verified | "
+          "loops accepted | loop detection per keyframe (ms) | relocalisations | relocalisation "
+          "query (ms) |\n|---|---|---|---|---|---|---|\n";
+    for (const ConfigResult& c : s.configs) {
+      if (c.skipped) continue;
+      const int n = static_cast<int>(c.runs.size());
+      md << "| " << c.config.label << " | " << cell(c.keyframes, 0, n) << " | "
+         << cell(c.loops_verified, 0, n) << " | " << cell(c.loops_accepted, 0, n) << " | "
+         << cell(c.loop_detection_ms, 2, n) << " | " << cell(c.relocalisations, 0, n) << " | "
+         << cell(c.relocalisation_query_ms, 2, n) << " |\n";
     }
 
     // Per-stage medians: the stages of the configuration with the most, in its pipeline order,

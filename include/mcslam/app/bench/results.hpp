@@ -29,6 +29,10 @@ struct RunRecord {
   int frames = 0;
   std::optional<double> ate_rmse_m, rpe_trans_m, rpe_rot_deg;  ///< need ground truth
   std::optional<double> tracked_ratio, fps, tracking_ms, dynamics_ms;
+  /// Place recognition: keyframes in the map, loops verified and accepted, median ms of loop
+  /// detection per keyframe and of the relocalisation database query, relocalisations.
+  std::optional<double> keyframes, loops_verified, loops_accepted, loop_detection_ms,
+      relocalisations, relocalisation_query_ms;
   /// Median ms of each tracking stage, in pipeline order (image_load first).
   std::vector<std::pair<std::string, double>> stages_ms;
 };
@@ -56,7 +60,10 @@ struct ConfigResult {
   /// Accuracy from the sequential runs (all runs when there are none), speed from the threaded
   /// runs (likewise).
   std::optional<Spread> ate, ate_threaded, rpe_trans, rpe_rot_deg, tracked, fps, tracking_ms;
-  std::optional<double> dynamics_ms;                      ///< mean per frame, speed runs
+  std::optional<double> dynamics_ms;  ///< mean per frame, speed runs
+  /// Place recognition (all runs): medians of RunRecord's figures.
+  std::optional<Spread> keyframes, loops_verified, loops_accepted, loop_detection_ms,
+      relocalisations, relocalisation_query_ms;
   std::vector<std::pair<std::string, double>> stages_ms;  ///< median over the speed runs
 };
 
