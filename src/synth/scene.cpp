@@ -265,15 +265,11 @@ Scene make_room_scene(const SynthOptions& options) {
   return scene;
 }
 
-SE3 camera_pose_at(double t, double speed) {
-  const double s = speed * t;
-  const Eigen::Vector3d position(0.1 + wave(0.50, 9.0, 0.0, s) + wave(0.12, 3.7, 1.0, s),
-                                 wave(0.60, 11.0, 0.5, s) + wave(0.12, 4.3, 2.0, s),
-                                 1.4 + wave(0.12, 7.0, 0.3, s) + wave(0.04, 2.9, 1.1, s));
-  const double yaw = (wave(36.0, 10.0, 0.0, s) + wave(5.0, 3.3, 0.4, s)) * kDeg;
-  const double pitch = (12.0 + wave(6.0, 6.3, 0.7, s) + wave(2.0, 2.3, 1.9, s)) * kDeg;  // down
-  const double roll = (wave(4.0, 5.1, 1.3, s) + wave(1.5, 1.9, 0.2, s)) * kDeg;
-  // Camera looking along world +x, upright: x_c = -y_w, y_c = -z_w, z_c = +x_w.
+namespace {
+
+/// A camera at `position` turned by yaw (about world z), then pitched down and rolled from
+/// looking along world +x upright (x_c = -y_w, y_c = -z_w, z_c = +x_w).
+SE3 pose_from_angles(const Eigen::Vector3d& position, double yaw, double pitch, double roll) {
   Eigen::Matrix3d R_w_c0;
   R_w_c0 << 0.0, 0.0, 1.0, -1.0, 0.0, 0.0, 0.0, -1.0, 0.0;
   const Eigen::Matrix3d R_w_c =
@@ -284,6 +280,19 @@ SE3 camera_pose_at(double t, double speed) {
   return SE3(R_w_c, position);
 }
 
+}  // namespace
+
+SE3 camera_pose_at(double t, double speed) {
+  const double s = speed * t;
+  const Eigen::Vector3d position(0.1 + wave(0.50, 9.0, 0.0, s) + wave(0.12, 3.7, 1.0, s),
+                                 wave(0.60, 11.0, 0.5, s) + wave(0.12, 4.3, 2.0, s),
+                                 1.4 + wave(0.12, 7.0, 0.3, s) + wave(0.04, 2.9, 1.1, s));
+  const double yaw = (wave(36.0, 10.0, 0.0, s) + wave(5.0, 3.3, 0.4, s)) * kDeg;
+  const double pitch = (12.0 + wave(6.0, 6.3, 0.7, s) + wave(2.0, 2.3, 1.9, s)) * kDeg;  // down
+  const double roll = (wave(4.0, 5.1, 1.3, s) + wave(1.5, 1.9, 0.2, s)) * kDeg;
+  return pose_from_angles(position, yaw, pitch, roll);
+}
+
 SE3 loop_pose_at(double t, double speed, double period) {
   const double a = 2.0 * M_PI * speed * t / period;  // lap angle
   const Eigen::Vector3d position(0.7 * std::cos(a), 0.6 * std::sin(a),
@@ -292,14 +301,7 @@ SE3 loop_pose_at(double t, double speed, double period) {
   const double yaw = a + 8.0 * kDeg * std::sin(2.0 * a);
   const double pitch = (12.0 + 4.0 * std::sin(5.0 * a)) * kDeg;  // down
   const double roll = 3.0 * kDeg * std::sin(4.0 * a + 0.5);
-  Eigen::Matrix3d R_w_c0;  // looking along world +x, upright (as camera_pose_at)
-  R_w_c0 << 0.0, 0.0, 1.0, -1.0, 0.0, 0.0, 0.0, -1.0, 0.0;
-  const Eigen::Matrix3d R_w_c =
-      (Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()) *
-       Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitY()))
-          .toRotationMatrix() *
-      R_w_c0 * Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitZ()).toRotationMatrix();
-  return SE3(R_w_c, position);
+  return pose_from_angles(position, yaw, pitch, roll);
 }
 
 SE3 orbit_pose_at(double t, double speed, double period) {

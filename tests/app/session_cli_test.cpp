@@ -11,6 +11,7 @@
 
 #include "mcslam/synth/sequence.hpp"
 #include "support/cli_runner.hpp"
+#include "support/small_room.hpp"
 #include "support/temp_dir.hpp"
 
 #ifndef MCSLAM_EXE
@@ -29,14 +30,7 @@ class SessionCli : public testing::Test {
   /// the tests of this suite).
   static void SetUpTestSuite() {
     dir_ = new mcslam::test::TempDir("mcslam_session_cli_test");
-    mcslam::synth::SynthOptions o;
-    o.width = 320;
-    o.height = 240;
-    o.fx = o.fy = 262.5;
-    o.cx = 159.5;
-    o.cy = 119.5;
-    o.frames = 90;
-    mcslam::synth::write_sequence((*dir_ / "room").string(), o);
+    mcslam::synth::write_sequence((*dir_ / "room").string(), mcslam::test::small_room(90));
     first_ = run("--output " + quote(dir_->file("first")) + " --save-session " + quote(session()));
   }
   static void TearDownTestSuite() {

@@ -10,6 +10,7 @@
 #include "mcslam/place/vocabulary.hpp"
 #include "mcslam/synth/sequence.hpp"
 #include "support/cli_runner.hpp"
+#include "support/small_room.hpp"
 #include "support/temp_dir.hpp"
 
 #ifndef MCSLAM_EXE
@@ -26,14 +27,7 @@ class VocabularyCli : public testing::Test {
  protected:
   /// A rendered room, 24 frames at 320 x 240 (once per test).
   void SetUp() override {
-    mcslam::synth::SynthOptions o;
-    o.width = 320;
-    o.height = 240;
-    o.fx = o.fy = 262.5;
-    o.cx = 159.5;
-    o.cy = 119.5;
-    o.frames = 24;
-    mcslam::synth::write_sequence(seq_.string(), o);
+    mcslam::synth::write_sequence(seq_.string(), mcslam::test::small_room(24));
   }
 
   CliResult vocabulary(const std::string& args) {

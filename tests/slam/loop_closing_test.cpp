@@ -9,37 +9,24 @@
 #include "mcslam/eval/metrics.hpp"
 #include "mcslam/slam/system.hpp"
 #include "mcslam/synth/sequence.hpp"
+#include "support/small_room.hpp"
+#include "synthetic_fixture.hpp"
 
 namespace mcslam::slam {
 namespace {
 
-struct Loop {
-  std::vector<synth::RenderedFrame> frames;
-  Trajectory groundtruth;
-  PinholeCamera camera;
-};
+using Loop = test::RenderedSequence;
 
 /// A 320 x 240 render of the loop path (12 s a lap), 1.2 laps.
 const Loop& rendered_loop() {
-  static const Loop loop = [] {
-    synth::SynthOptions o;
-    o.width = 320;
-    o.height = 240;
-    o.fx = o.fy = 262.5;
-    o.cx = 159.5;
-    o.cy = 119.5;
+  static const std::unique_ptr<Loop> loop = [] {
+    synth::SynthOptions o = test::small_room(432);
     o.path = synth::CameraPath::kLoop;
     o.loop_period = 12.0;
-    o.frames = 432;
     o.depth_noise = true;
-    synth::SyntheticSequence seq(o);
-    Loop l;
-    for (int i = 0; i < seq.size(); ++i) l.frames.push_back(seq.frame(i));
-    l.groundtruth = seq.groundtruth();
-    l.camera = seq.camera();
-    return l;
+    return test::render(o);
   }();
-  return loop;
+  return *loop;
 }
 
 SystemOptions options(bool loops) {

@@ -20,6 +20,17 @@ struct RenderedSequence {
   PinholeCamera camera;
 };
 
+/// Renders every frame of `options`.
+inline std::unique_ptr<RenderedSequence> render(const synth::SynthOptions& options) {
+  auto s = std::make_unique<RenderedSequence>();
+  s->options = options;
+  synth::SyntheticSequence seq(options);
+  for (int i = 0; i < seq.size(); ++i) s->frames.push_back(seq.frame(i));
+  s->groundtruth = seq.groundtruth();
+  s->camera = seq.camera();
+  return s;
+}
+
 /// Renders (once per process) `frames` frames of the synthetic room.
 inline const RenderedSequence& rendered_sequence(
     int frames, bool depth_noise, double speed = 1.0, std::uint64_t seed = 1,
@@ -29,16 +40,13 @@ inline const RenderedSequence& rendered_sequence(
       cache;
   auto& slot = cache[{frames, depth_noise, speed, seed, texture}];
   if (!slot) {
-    slot = std::make_unique<RenderedSequence>();
-    slot->options.frames = frames;
-    slot->options.depth_noise = depth_noise;
-    slot->options.speed = speed;
-    slot->options.seed = seed;
-    slot->options.texture = texture;
-    synth::SyntheticSequence seq(slot->options);
-    for (int i = 0; i < seq.size(); ++i) slot->frames.push_back(seq.frame(i));
-    slot->groundtruth = seq.groundtruth();
-    slot->camera = seq.camera();
+    synth::SynthOptions o;
+    o.frames = frames;
+    o.depth_noise = depth_noise;
+    o.speed = speed;
+    o.seed = seed;
+    o.texture = texture;
+    slot = render(o);
   }
   return *slot;
 }

@@ -196,5 +196,36 @@ TEST(CameraPath, SmoothInsideTheRoomAndClearOfSurfaces) {
   EXPECT_LE(max_height, 1.6);
 }
 
+/// The loop and orbit paths come back to where they started, with the same view, after one lap
+/// and not before; the room's walls stay clear of them.
+TEST(CameraPath, LoopAndOrbitReturnToTheirStartAfterOneLap) {
+  for (const CameraPath path : {CameraPath::kLoop, CameraPath::kOrbit}) {
+    SynthOptions o;
+    o.path = path;
+    o.loop_period = 20.0;
+    o.room_scale = path == CameraPath::kOrbit ? 2.0 : 1.0;
+    const SE3 start = path_pose_at(o, 0.0);
+    const SE3 lap = path_pose_at(o, 20.0);
+    EXPECT_LT((start.translation() - lap.translation()).norm(), 1e-9);
+    EXPECT_LT(rotation_angle(start.quaternion() * lap.quaternion().conjugate()), 1e-9);
+    double farthest = 0.0, min_wall = 1e9;
+    const Scene scene = make_room_scene(o);
+    for (double t = 0.5; t < 20.0; t += 0.5) {
+      const SE3 p = path_pose_at(o, t);
+      farthest = std::max(farthest, (p.translation() - start.translation()).norm());
+      const Eigen::Vector3d c = p.translation();
+      min_wall = std::min({min_wall, c.x() - scene.room_min.x(), scene.room_max.x() - c.x(),
+                           c.y() - scene.room_min.y(), scene.room_max.y() - c.y()});
+    }
+    EXPECT_GT(farthest, 1.0);  // it does go round
+    EXPECT_GT(min_wall, 0.8);
+  }
+  SynthOptions orbit;
+  orbit.path = CameraPath::kOrbit;
+  EXPECT_TRUE(orbit.check().has_value());  // needs room_scale >= 2
+  orbit.room_scale = 2.0;
+  EXPECT_FALSE(orbit.check().has_value());
+}
+
 }  // namespace
 }  // namespace mcslam::synth
