@@ -595,9 +595,9 @@ void LocalMapper::cull_keyframes(map::KeyFrameId id) {
   }
 }
 
-void LocalMapper::correct(const MapCorrection& correction) {
+void LocalMapper::correct(const map::MapCorrection& correction) {
   auto lock = map_.write_lock();
-  apply_correction(map_, correction);
+  map::apply_correction(map_, correction);
   corrected_version_ = map_.version();
 }
 
@@ -723,7 +723,7 @@ bool LocalMapper::close_loop(const LoopClosure& loop, const LoopOptions& options
   }
   optim::optimize_pose_graph(graph, options.pose_graph);
 
-  MapCorrection correction;
+  map::MapCorrection correction;
   correction.before = std::move(before);
   for (map::KeyFrameId id : ids)
     correction.after.emplace(id, graph.poses[static_cast<std::size_t>(index.at(id))]);

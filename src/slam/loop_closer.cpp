@@ -397,7 +397,7 @@ void LoopCloser::full_bundle_adjustment() {
   ba.refine_iterations = options_.full_ba_iterations;
   const auto result = optim::bundle_adjust(camera_, adjustment.problem, ba, &abort_ba_);
   if (!result.aborted) {
-    const MapCorrection correction = correction_of(adjustment, result, before);
+    const map::MapCorrection correction = correction_of(adjustment, result, before);
     mapper_.run_task([&] { mapper_.correct(correction); });
   }
   std::lock_guard<std::mutex> guard(stats_mutex_);

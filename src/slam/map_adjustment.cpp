@@ -157,10 +157,10 @@ void apply_adjustment(map::Map& map, const MapAdjustment& a,
   for (const auto& kv : a.pose_index) map.update_covisibility(kv.first);
 }
 
-MapCorrection correction_of(const MapAdjustment& solved,
-                            const optim::BundleAdjustmentResult& result,
-                            const std::vector<SE3>& poses_before) {
-  MapCorrection c;
+map::MapCorrection correction_of(const MapAdjustment& solved,
+                                 const optim::BundleAdjustmentResult& result,
+                                 const std::vector<SE3>& poses_before) {
+  map::MapCorrection c;
   for (std::size_t k = 0; k < solved.observation_ids.size(); ++k)
     if (!result.inlier[k]) c.point_outliers.push_back(solved.observation_ids[k]);
   for (std::size_t k = 0; k < solved.line_observation_ids.size(); ++k)
@@ -180,102 +180,6 @@ MapCorrection correction_of(const MapAdjustment& solved,
   for (std::size_t k = 0; k < solved.plane_ids.size(); ++k)
     c.planes.emplace(solved.plane_ids[k], solved.problem.planes[k]);
   return c;
-}
-
-void apply_correction(map::Map& map, const MapCorrection& correction) {
-  if (correction.after.empty()) return;
-  for (const auto& [kf, point] : correction.point_outliers)
-    if (map.point(point) != nullptr) map.erase_observation(point, kf);
-  for (const auto& [kf, line] : correction.line_outliers)
-    if (map.line(line) != nullptr) map.erase_line_observation(line, kf);
-  for (const auto& [kf, plane] : correction.plane_outliers)
-    if (map.plane(plane) != nullptr) map.erase_plane_observation(plane, kf);
-  // Old and new pose of every keyframe.
-  struct Move {
-    SE3 old_T_c_w;
-    SE3 new_T_c_w;
-  };
-  std::unordered_map<map::KeyFrameId, Move> moves;
-  std::vector<map::KeyFrameId> corrected;
-  for (const auto& [id, T] : correction.after)
-    if (map.keyframe(id) != nullptr) corrected.push_back(id);
-  std::sort(corrected.begin(), corrected.end());
-  if (corrected.empty()) return;
-  const auto old_pose = [&](map::KeyFrameId id) {
-    const auto it = correction.before.find(id);
-    return it != correction.before.end() ? it->second : map.keyframe(id)->T_c_w;
-  };
-  for (map::KeyFrameId id : corrected) moves[id] = {old_pose(id), correction.after.at(id)};
-  for (const auto& [id, kf] : map.keyframes()) {
-    if (moves.count(id) != 0) continue;
-    // The keyframe it hangs on: its strongest covisible corrected keyframe, else the closest
-    // earlier corrected one (else the first).
-    map::KeyFrameId ref = map::kNoId;
-    for (map::KeyFrameId other : map.best_covisible(id, kf.covisibility.size()))
-      if (correction.after.count(other) != 0 && map.keyframe(other) != nullptr) {
-        ref = other;
-        break;
-      }
-    if (ref == map::kNoId) {
-      auto it = std::upper_bound(corrected.begin(), corrected.end(), id);
-      ref = it == corrected.begin() ? corrected.front() : *(it - 1);
-    }
-    const Move& r = moves.at(ref);
-    moves[id] = {kf.T_c_w, kf.T_c_w * r.old_T_c_w.inverse() * r.new_T_c_w};
-  }
-  for (const auto& [id, m] : moves) map.set_keyframe_pose(id, m.new_T_c_w);
-
-  // World-to-world motion of what hangs on keyframe `id`: p' = T_new^-1 T_old p.
-  const auto motion_of = [&](map::KeyFrameId id) -> std::optional<SE3> {
-    const auto it = moves.find(id);
-    if (it == moves.end()) return std::nullopt;
-    return it->second.new_T_c_w.inverse() * it->second.old_T_c_w;
-  };
-  const auto reference_motion = [&](map::KeyFrameId first, const auto& observations) {
-    if (auto m = motion_of(first)) return m;
-    for (const auto& obs : observations)
-      if (auto m = motion_of(obs.first)) return m;
-    return std::optional<SE3>();
-  };
-  std::vector<map::PointId> point_ids;
-  for (const auto& [id, p] : map.points()) point_ids.push_back(id);
-  for (map::PointId id : point_ids) {
-    const map::MapPoint& p = *map.point(id);
-    if (const auto it = correction.points.find(id); it != correction.points.end()) {
-      map.set_point_position(id, it->second);
-    } else if (const auto m = reference_motion(p.first_keyframe, p.observations)) {
-      map.set_point_position(id, (*m) * p.p_w);
-    }
-    map.update_point_appearance(id);
-  }
-  std::vector<map::LineId> line_ids;
-  for (const auto& [id, l] : map.lines()) line_ids.push_back(id);
-  for (map::LineId id : line_ids) {
-    const map::MapLine& l = *map.line(id);
-    if (const auto it = correction.lines.find(id); it != correction.lines.end()) {
-      map.set_line_endpoints(id, it->second.first, it->second.second);
-    } else if (const auto m = reference_motion(l.first_keyframe, l.observations)) {
-      map.set_line_endpoints(id, (*m) * l.start_w, (*m) * l.end_w);
-    }
-  }
-  std::vector<map::PlaneId> plane_ids;
-  for (const auto& [id, p] : map.planes()) plane_ids.push_back(id);
-  for (map::PlaneId id : plane_ids) {
-    const map::MapPlane& p = *map.plane(id);
-    const auto m = reference_motion(p.first_keyframe, p.observations);
-    std::vector<Eigen::Vector3d> hull = p.hull;
-    if (m)
-      for (auto& h : hull) h = (*m) * h;
-    if (const auto it = correction.planes.find(id); it != correction.planes.end()) {
-      map.set_plane(id, it->second);
-    } else if (m) {
-      // n . p + d = 0 and p' = R p + t: (R n) . p' + d - (R n) . t = 0.
-      const Eigen::Vector3d n = m->rotation() * p.normal;
-      map.set_plane(id, Eigen::Vector4d(n.x(), n.y(), n.z(), p.d - n.dot(m->translation())));
-    }
-    map.set_plane_hull(id, hull);
-  }
-  map.bump_version();
 }
 
 }  // namespace mcslam::slam

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "mcslam/core/se3.hpp"
+#include "mcslam/map/correction.hpp"
 #include "mcslam/map/map.hpp"
 #include "mcslam/optim/bundle_adjustment.hpp"
 #include "mcslam/slam/options.hpp"
@@ -43,28 +44,9 @@ MapAdjustment build_adjustment(const map::Map& map, const std::vector<map::KeyFr
 void apply_adjustment(map::Map& map, const MapAdjustment& a,
                       const optim::BundleAdjustmentResult& result);
 
-/// A correction of the map: keyframe poses (T_c_w) before and after, and optionally new
-/// positions of landmarks. Keyframes without a new pose keep their pose relative to a corrected
-/// keyframe (their strongest covisible one, else the closest earlier one); landmarks without a
-/// new position move with the keyframe that created them.
-struct MapCorrection {
-  std::unordered_map<map::KeyFrameId, SE3> before;
-  std::unordered_map<map::KeyFrameId, SE3> after;
-  std::unordered_map<map::PointId, Eigen::Vector3d> points;
-  std::unordered_map<map::LineId, std::pair<Eigen::Vector3d, Eigen::Vector3d>> lines;
-  std::unordered_map<map::PlaneId, Eigen::Vector4d> planes;
-  /// Observations found to be outliers (erased first).
-  std::vector<std::pair<map::KeyFrameId, map::PointId>> point_outliers;
-  std::vector<std::pair<map::KeyFrameId, map::LineId>> line_outliers;
-  std::vector<std::pair<map::KeyFrameId, map::PlaneId>> plane_outliers;
-};
-
-/// Call under the map's write lock.
-void apply_correction(map::Map& map, const MapCorrection& correction);
-
 /// The correction that an adjustment's solved problem makes (poses before: as built).
-MapCorrection correction_of(const MapAdjustment& solved,
-                            const optim::BundleAdjustmentResult& result,
-                            const std::vector<SE3>& poses_before);
+map::MapCorrection correction_of(const MapAdjustment& solved,
+                                 const optim::BundleAdjustmentResult& result,
+                                 const std::vector<SE3>& poses_before);
 
 }  // namespace mcslam::slam

@@ -9,6 +9,8 @@
 #include <numbers>
 #include <vector>
 
+#include "mcslam/map/correction.hpp"
+
 namespace mcslam::map {
 namespace {
 
@@ -431,6 +433,64 @@ TEST(Map, UpdatePointAppearanceNormalAndDistanceRange) {
   map.set_point_position(p, Eigen::Vector3d(2.0, 0.0, 5.0));
   map.update_point_appearance(p);
   EXPECT_NEAR(map.point(p)->max_distance, 3.0 * std::pow(1.2, 5), 1e-9);
+}
+
+/// A correction moves the corrected keyframes, the others with the keyframe they hang on (their
+/// strongest corrected covisible one), and every landmark with the keyframe that made it.
+TEST(MapCorrection, EverythingFollowsTheKeyframeItHangsOn) {
+  Map map;
+  const SE3 T1 = pose(0, 1, 0, 0.2, {0.5, 0.0, 0.1});
+  const SE3 T2 = pose(0, 1, 0, 0.4, {1.0, 0.1, 0.2});
+  map.add_keyframe(make_keyframe(0, 4));
+  map.add_keyframe(make_keyframe(1, 4, T1));
+  KeyFrame kf2 = make_keyframe(2, 4, T2);
+  {
+    auto f = std::make_shared<features::FrameFeatures>(*kf2.features);
+    f->lines.emplace_back();
+    f->planes.emplace_back();
+    kf2.features = f;
+  }
+  map.add_keyframe(std::move(kf2));
+  const PointId p0 = map.add_point({0.0, 0.0, 2.0}, 0, 0);
+  const PointId p1 = map.add_point({0.3, 0.1, 2.5}, 1, 0);
+  const PointId p2 = map.add_point({0.6, -0.1, 3.0}, 2, 0);
+  map.add_observation(p1, 2, 1);  // links keyframes 1 and 2
+  map.add_observation(p2, 1, 1);
+  map.add_observation(p0, 1, 2);
+  const LineId line = map.add_line({0.0, 0.0, 3.0}, {0.5, 0.0, 3.0}, 2, 0);
+  const Eigen::Vector4d plane_w(0.0, 0.0, 1.0, -3.0);  // z = 3
+  const PlaneId plane = map.add_plane(plane_w, {{0.0, 0.0, 3.0}, {1.0, 0.0, 3.0}}, 2, 0);
+  for (KeyFrameId k : {0u, 1u, 2u}) map.update_covisibility(k);
+
+  MapCorrection c;
+  const SE3 T1_new = pose(1, 0, 0, 0.05, {0.02, -0.03, 0.01}) * T1;
+  c.before = {{0, SE3()}, {1, T1}};
+  c.after = {{0, SE3()}, {1, T1_new}};
+  c.point_outliers = {{1, p0}};
+  apply_correction(map, c);
+
+  // Keyframe 2 keeps its pose relative to keyframe 1.
+  const SE3 T2_expected = T2 * T1.inverse() * T1_new;
+  expect_pose_near(map.keyframe(1)->T_c_w, T1_new.matrix());
+  expect_pose_near(map.keyframe(2)->T_c_w, T2_expected.matrix());
+  expect_pose_near(map.keyframe(0)->T_c_w, Eigen::Matrix4d::Identity());
+  // Landmarks stay where their keyframe saw them.
+  const auto seen_again = [&](const Eigen::Vector3d& before, const SE3& T_old, const SE3& T_new) {
+    return (T_new.inverse() * (T_old * before)).eval();
+  };
+  EXPECT_LT((map.point(p0)->p_w - Eigen::Vector3d(0.0, 0.0, 2.0)).norm(), 1e-12);
+  EXPECT_LT((map.point(p1)->p_w - seen_again({0.3, 0.1, 2.5}, T1, T1_new)).norm(), 1e-12);
+  EXPECT_LT((map.point(p2)->p_w - seen_again({0.6, -0.1, 3.0}, T2, T2_expected)).norm(), 1e-12);
+  EXPECT_LT((map.line(line)->start_w - seen_again({0.0, 0.0, 3.0}, T2, T2_expected)).norm(), 1e-12);
+  EXPECT_LT((map.line(line)->end_w - seen_again({0.5, 0.0, 3.0}, T2, T2_expected)).norm(), 1e-12);
+  // The plane moved with keyframe 2: its moved hull lies on it.
+  const MapPlane& moved = *map.plane(plane);
+  EXPECT_NEAR(moved.normal.norm(), 1.0, 1e-12);
+  ASSERT_EQ(moved.hull.size(), 2u);
+  for (const auto& h : moved.hull) EXPECT_NEAR(moved.distance(h), 0.0, 1e-12);
+  EXPECT_LT((moved.hull[0] - seen_again({0.0, 0.0, 3.0}, T2, T2_expected)).norm(), 1e-12);
+  // The outlier observation is gone.
+  EXPECT_EQ(map.point(p0)->observations.count(1), 0u);
 }
 
 }  // namespace

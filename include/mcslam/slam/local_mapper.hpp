@@ -15,6 +15,7 @@
 
 #include "mcslam/core/camera.hpp"
 #include "mcslam/core/timing.hpp"
+#include "mcslam/map/correction.hpp"
 #include "mcslam/map/map.hpp"
 #include "mcslam/optim/bundle_adjustment.hpp"
 #include "mcslam/place/vocabulary.hpp"
@@ -23,8 +24,6 @@
 #include "mcslam/slam/tracker.hpp"
 
 namespace mcslam::slam {
-
-struct MapCorrection;  // map_adjustment.hpp
 
 class LocalMapper {
  public:
@@ -49,7 +48,7 @@ class LocalMapper {
   /// Returns false, with event.reason, when the loop can no longer be applied.
   bool close_loop(const LoopClosure& loop, const LoopOptions& options, LoopEvent& event);
   /// Moves keyframes and landmarks (a merged full bundle adjustment). Mapper's thread only.
-  void correct(const MapCorrection& correction);
+  void correct(const map::MapCorrection& correction);
 
   /// Processes one keyframe inline and records its stage times in `times`.
   void process(KeyFrameRequest request, StageTimes* times = nullptr);
