@@ -864,6 +864,15 @@ std::string summary_text(const nlohmann::json& s) {
       o << ", " << state << " " << n.get<int>();
     o << "\n";
   }
+  if (s.contains("loops") && s["loops"]["enabled"].get<bool>()) {
+    const auto& l = s["loops"];
+    o << "loops: " << l["accepted"].get<int>() << " closed of " << l["detected"].get<int>()
+      << " verified; detection median " << std::setprecision(2)
+      << l["detection_median_ms"].get<double>() << " ms per keyframe\n";
+  }
+  if (s.contains("session") && !s["session"]["loaded"].get<std::string>().empty())
+    o << "session: " << (s["session"]["localize"].get<bool>() ? "localised in " : "mapped on in ")
+      << s["session"]["loaded"].get<std::string>() << "\n";
   if (s.value("state", "complete") == "interrupted") o << "interrupted: stopped on request\n";
   if (s.contains("passes") && !s["passes"].empty()) {
     o << "pass  frames  tracked  lost  reloc  tracking ms  fps    RSS MiB  keyframes  points"
