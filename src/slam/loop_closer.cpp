@@ -8,8 +8,10 @@
 #include <unordered_set>
 
 #include "map_adjustment.hpp"
+#include "mcslam/optim/pose_optimizer.hpp"
 #include "mcslam/place/matching.hpp"
 #include "mcslam/slam/local_mapper.hpp"
+#include "measurement.hpp"
 
 namespace mcslam::slam {
 namespace {
@@ -315,6 +317,23 @@ std::optional<LoopClosure> LoopCloser::verify(map::KeyFrameId id, map::KeyFrameI
     if (count_inliers(refit, nullptr) >= count_inliers(best_T, nullptr)) best_T = refit;
   }
   count_inliers(best_T, &inlier);
+  // Then the pose that best explains the inliers' image positions and depths (RANSAC's fit weighs
+  // every 3D point alike, though depth noise grows with the square of the distance).
+  const auto optimise = [&](const std::vector<std::pair<int, map::PointId>>& pairs, const SE3& T) {
+    std::vector<optim::PoseObservation> observations;
+    for (const auto& [feature, point] : pairs)
+      observations.push_back(
+          {map_.point(point)->p_w,
+           measurement_of(features[static_cast<std::size_t>(feature)], pyramid, depth_weight_)});
+    return optim::optimize_pose(camera_, T, observations, tracker_options_.pose);
+  };
+  {
+    std::vector<std::pair<int, map::PointId>> pairs;
+    for (std::size_t k = 0; k < p_w.size(); ++k)
+      if (inlier[k]) pairs.emplace_back(feature_of[k], point_of[k]);
+    best_T = optimise(pairs, best_T).T_c_w;
+    count_inliers(best_T, &inlier);
+  }
   LoopClosure loop;
   loop.keyframe = id;
   loop.matched = candidate;
@@ -366,6 +385,13 @@ std::optional<LoopClosure> LoopCloser::verify(map::KeyFrameId id, map::KeyFrameI
       loop.matches.emplace_back(best_feature, pid);
     }
   }
+  // The final pose from every match; outliers leave.
+  const optim::PoseOptimizationResult refined = optimise(loop.matches, best_T);
+  loop.T_c_w = refined.T_c_w;
+  std::vector<std::pair<int, map::PointId>> kept;
+  for (std::size_t k = 0; k < loop.matches.size(); ++k)
+    if (refined.inlier[k]) kept.push_back(loop.matches[k]);
+  loop.matches = std::move(kept);
   event.inliers = static_cast<int>(loop.matches.size());
   if (event.inliers < options_.min_inliers) {
     event.reason = "too few inliers after the guided search";

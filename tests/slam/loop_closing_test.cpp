@@ -95,8 +95,8 @@ TEST(LoopClosing, ClosesTheLoopAtATrueRevisitAndCorrectsTheDrift) {
   }
   EXPECT_GE(accepted, 1);
   EXPECT_EQ(on.tracked, static_cast<int>(l.frames.size()));
-  // Measured: 0.0152 m with loop closing, 0.0228 m without.
-  EXPECT_LT(on.ate, 0.85 * off.ate) << "with loops " << on.ate << ", without " << off.ate;
+  // Measured: 0.0084 m with loop closing, 0.0228 m without (0.37x).
+  EXPECT_LT(on.ate, 0.5 * off.ate) << "with loops " << on.ate << ", without " << off.ate;
   std::printf("synthetic loop: ATE %.4f m with loop closing, %.4f m without; %d loop(s)\n", on.ate,
               off.ate, accepted);
 }
