@@ -414,7 +414,6 @@ nlohmann::json run_frames(const RunRequest& request, const io::RgbdSequence& seq
                           const std::optional<Trajectory>& groundtruth, RunStatus& status) {
   namespace fs = std::filesystem;
   const fs::path out(request.output_dir);
-  const bool from_session = initial_map != nullptr;
   slam::System system(config.camera, config.options, std::move(initial_map));
   std::string detection_description;
   if (detection_source) {
@@ -655,7 +654,6 @@ nlohmann::json run_frames(const RunRequest& request, const io::RgbdSequence& seq
   summary["session"] = {{"loaded", request.load_session.value_or("")},
                         {"localize", config.options.localize},
                         {"saved", request.save_session.value_or("")}};
-  (void)from_session;
   summary["keyframes_inserted"] = keyframes_inserted;
   {
     auto lock = system.map().read_lock();

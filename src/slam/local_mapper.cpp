@@ -72,11 +72,8 @@ void LocalMapper::set_vocabulary(std::shared_ptr<const place::Vocabulary> vocabu
 }
 
 std::shared_ptr<const place::BowImage> LocalMapper::bag_of_words(const map::KeyFrame& kf) const {
-  std::vector<features::OrbDescriptor> descriptors;
-  descriptors.reserve(kf.features->points.size());
-  for (const auto& p : kf.features->points) descriptors.push_back(p.descriptor);
-  return std::make_shared<const place::BowImage>(
-      vocabulary_->transform(descriptors, direct_levels_up_, kf.excluded_points));
+  return std::make_shared<const place::BowImage>(vocabulary_->transform(
+      kf.features->point_descriptors(), direct_levels_up_, kf.excluded_points));
 }
 
 void LocalMapper::set_keyframe_listener(std::function<void(map::KeyFrameId)> listener) {
@@ -165,6 +162,7 @@ void LocalMapper::run() {
         task();
         lock.lock();
         busy_ = false;
+        idle_cv_.notify_all();
         continue;
       }
       if (queue_.empty()) return;  // stop requested and everything processed
@@ -175,7 +173,14 @@ void LocalMapper::run() {
     process(std::move(request));
     std::lock_guard<std::mutex> lock(queue_mutex_);
     busy_ = false;
+    idle_cv_.notify_all();
   }
+}
+
+void LocalMapper::wait_idle() {
+  std::unique_lock<std::mutex> lock(queue_mutex_);
+  if (!thread_.joinable()) return;
+  idle_cv_.wait(lock, [this] { return queue_.empty() && tasks_.empty() && !busy_; });
 }
 
 void LocalMapper::insert_keyframe(const KeyFrameRequest& request) {

@@ -16,13 +16,6 @@
 namespace mcslam::slam {
 namespace {
 
-std::vector<features::OrbDescriptor> descriptors_of(const map::KeyFrame& kf) {
-  std::vector<features::OrbDescriptor> out;
-  out.reserve(kf.features->points.size());
-  for (const auto& p : kf.features->points) out.push_back(p.descriptor);
-  return out;
-}
-
 /// A point seen from `T_c_w` against a keypoint with depth: u, v and the virtual right
 /// coordinate within the chi-square 95 % bound of 3 degrees of freedom at the keypoint's level.
 bool consistent(const PinholeCamera& camera, const features::PointFeature& f,
@@ -246,13 +239,13 @@ std::optional<LoopClosure> LoopCloser::verify(map::KeyFrameId id, map::KeyFrameI
     return features[static_cast<std::size_t>(i)].has_depth() &&
            !kf->point_excluded(static_cast<std::size_t>(i));
   };
-  const auto matches =
-      place::match_by_words(kf->bow->direct, descriptors_of(*kf), old->bow->direct,
-                            descriptors_of(*old), place::WordMatchOptions{}, usable, [&](int j) {
-                              const map::PointId p = old->landmarks[static_cast<std::size_t>(j)];
-                              return p != map::kNoId && map_.point(p) != nullptr &&
-                                     !old->point_excluded(static_cast<std::size_t>(j));
-                            });
+  const auto matches = place::match_by_words(
+      kf->bow->direct, kf->features->point_descriptors(), old->bow->direct,
+      old->features->point_descriptors(), place::WordMatchOptions{}, usable, [&](int j) {
+        const map::PointId p = old->landmarks[static_cast<std::size_t>(j)];
+        return p != map::kNoId && map_.point(p) != nullptr &&
+               !old->point_excluded(static_cast<std::size_t>(j));
+      });
   event.matches = static_cast<int>(matches.size());
   if (event.matches < options_.min_matches) {
     event.reason = "too few matches through the vocabulary";

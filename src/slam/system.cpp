@@ -1,9 +1,7 @@
 #include "mcslam/slam/system.hpp"
 
-#include <chrono>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
-#include <thread>
 
 #include "mcslam/core/error.hpp"
 #include "mcslam/io/undistort.hpp"
@@ -206,7 +204,7 @@ void System::finish() {
   // The mapper's queue first (its keyframes go to the loop closer), then the loop closer (its
   // corrections run on the mapper's thread), then the mapper.
   if (loop_closer_) {
-    while (!mapper_->idle()) std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    mapper_->wait_idle();
     loop_closer_->finish();
   }
   mapper_->finish();

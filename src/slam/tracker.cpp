@@ -509,8 +509,7 @@ bool Tracker::track_reference_keyframe(const Frame& frame, Associations& assoc, 
       train.push_back(ref->features->points[i].descriptor);
       train_index.push_back(static_cast<int>(i));
     }
-  std::vector<features::OrbDescriptor> query;
-  for (const auto& p : frame.features->points) query.push_back(p.descriptor);
+  const std::vector<features::OrbDescriptor> query = frame.features->point_descriptors();
   const auto found =
       features::match_descriptors(query, train, options_.max_descriptor_distance, 0.7f, true);
   for (const auto& m : found) {
@@ -879,8 +878,7 @@ bool Tracker::relocalise(const Frame& frame, Associations& assoc, SE3& T_c_w) {
     }
     candidates.push_back(std::move(c));
   };
-  std::vector<features::OrbDescriptor> query;
-  for (const auto& p : frame.features->points) query.push_back(p.descriptor);
+  const std::vector<features::OrbDescriptor> query = frame.features->point_descriptors();
   const auto n = static_cast<std::size_t>(options_.relocalisation_candidates);
   Stopwatch watch;
   {
@@ -898,9 +896,7 @@ bool Tracker::relocalise(const Frame& frame, Associations& assoc, SE3& T_c_w) {
       for (const auto& result : results) {
         const map::KeyFrame* kf = map_.keyframe(result.id);
         if (kf == nullptr || !kf->bow) continue;
-        std::vector<features::OrbDescriptor> train;
-        train.reserve(kf->features->points.size());
-        for (const auto& p : kf->features->points) train.push_back(p.descriptor);
+        const std::vector<features::OrbDescriptor> train = kf->features->point_descriptors();
         const auto has_landmark = [&](int j) {
           const map::PointId p = kf->landmarks[static_cast<std::size_t>(j)];
           return p != map::kNoId && map_.point(p) != nullptr;

@@ -61,6 +61,14 @@ struct FrameFeatures {
   std::vector<PlaneFeature> planes;
   KeypointGrid grid;
   std::shared_ptr<const ScalePyramid> pyramid;
+
+  /// The points' descriptors, in point order (for matching and bags of words).
+  std::vector<OrbDescriptor> point_descriptors() const {
+    std::vector<OrbDescriptor> out;
+    out.reserve(points.size());
+    for (const PointFeature& p : points) out.push_back(p.descriptor);
+    return out;
+  }
 };
 
 }  // namespace mcslam::features

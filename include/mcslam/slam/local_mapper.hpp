@@ -59,6 +59,9 @@ class LocalMapper {
   /// Waits until the queue is empty and the thread has stopped.
   void finish();
   bool idle() const;
+  /// Waits until the queue is empty and nothing is running (threaded mode; returns at once
+  /// otherwise).
+  void wait_idle();
   std::size_t queue_size() const;
 
   /// Bundle adjustment of the whole map (all keyframes and points, the first keyframe fixed).
@@ -107,6 +110,7 @@ class LocalMapper {
 
   mutable std::mutex queue_mutex_;
   std::condition_variable queue_cv_;
+  std::condition_variable idle_cv_;
   std::deque<KeyFrameRequest> queue_;
   std::deque<std::function<void()>> tasks_;
   bool stop_ = false;
