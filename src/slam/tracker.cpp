@@ -327,8 +327,10 @@ int Tracker::search_last_frame(const Frame& frame, const SE3& T_c_w, double radi
   std::vector<int> source(points.size(), -1);
   int count = 0;
 
-  // World positions of the last frame's points, landmarks read from the map.
-  const SE3 T_w_last = last_->T_c_w.inverse();
+  // World positions of the last frame's points, landmarks read from the map; the others from the
+  // last frame's depth, placed where its reference keyframe now is (after bundle adjustment or a
+  // loop correction, the pose tracking gave it is stale and would mix two frames of reference).
+  const SE3 T_w_last = last_frame_pose()->inverse();
   std::vector<std::optional<Eigen::Vector3d>> world(last_points.size());
   {
     auto lock = map_.read_lock();
@@ -397,8 +399,9 @@ int Tracker::search_last_lines(const Frame& frame, const SE3& T_c_w, double dist
                                std::vector<LineMatch>& matches) const {
   const auto& last_lines = last_->frame.features->lines;
   if (last_lines.empty() || frame.features->lines.empty()) return 0;
-  // World endpoints of the last frame's segments: their map line, or their own 3D fit.
-  const SE3 T_w_last = last_->T_c_w.inverse();
+  // World endpoints of the last frame's segments: their map line, or their own 3D fit (placed as
+  // the last frame's points are, through its reference keyframe).
+  const SE3 T_w_last = last_frame_pose()->inverse();
   std::vector<features::PredictedLine> predicted;
   std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>> world;
   std::vector<map::LineId> landmark;

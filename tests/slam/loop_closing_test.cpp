@@ -17,12 +17,14 @@ namespace {
 
 using Loop = test::RenderedSequence;
 
-/// A 320 x 240 render of the loop path (12 s a lap), 1.2 laps.
+/// A 320 x 240 render of the loop path at its default pace (24 s a lap, 0.9 m/s at most), 1.2
+/// laps. Half that lap drifts only 2 cm, hardly above the 6-8 mm tracking floor of these renders;
+/// the full lap drifts 5-8 cm, which is what loop closing is for.
 const Loop& rendered_loop() {
   static const std::unique_ptr<Loop> loop = [] {
-    synth::SynthOptions o = test::small_room(432);
+    synth::SynthOptions o = test::small_room(864);
     o.path = synth::CameraPath::kLoop;
-    o.loop_period = 12.0;
+    o.loop_period = 24.0;
     o.depth_noise = true;
     return test::render(o);
   }();
@@ -91,12 +93,12 @@ TEST(LoopClosing, ClosesTheLoopAtATrueRevisitAndCorrectsTheDrift) {
     const SE3 b = truth_at(l.groundtruth, e.matched_timestamp);
     EXPECT_LT((a.translation() - b.translation()).norm(), 0.5) << e.keyframe << "-" << e.matched;
     EXPECT_LT(rotation_angle(a.quaternion() * b.quaternion().conjugate()), 30.0 * M_PI / 180.0);
-    EXPECT_GT(e.timestamp - e.matched_timestamp, 6.0);  // half a lap or more apart
+    EXPECT_GT(e.timestamp - e.matched_timestamp, 12.0);  // half a lap or more apart
   }
   EXPECT_GE(accepted, 1);
   EXPECT_EQ(on.tracked, static_cast<int>(l.frames.size()));
-  // Measured: 0.0084 m with loop closing, 0.0228 m without (0.37x).
-  EXPECT_LT(on.ate, 0.5 * off.ate) << "with loops " << on.ate << ", without " << off.ate;
+  // Measured: 0.0113 m with loop closing, 0.0542 m without (0.21x); the target is 1/3.
+  EXPECT_LT(on.ate, off.ate / 3.0) << "with loops " << on.ate << ", without " << off.ate;
   std::printf("synthetic loop: ATE %.4f m with loop closing, %.4f m without; %d loop(s)\n", on.ate,
               off.ate, accepted);
 }
