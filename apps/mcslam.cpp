@@ -197,6 +197,9 @@ int main(int argc, char** argv) {
                    "Play the sequence N times in a row as one stream (a soak run; per-pass "
                    "speed, memory, map size and ATE in the summary)")
       ->check(CLI::PositiveNumber);
+  run_cmd->add_flag("--realtime", run.realtime,
+                    "Deliver frames at their timestamps as a live camera does, dropping those the "
+                    "pipeline cannot take in time (dropped frames and latency in the summary)");
   run_cmd->add_flag("--quiet,-q", quiet, "No progress bar and no summary");
 
   mcslam::app::BenchRequest bench;

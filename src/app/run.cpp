@@ -15,6 +15,7 @@
 #include <opencv2/imgproc.hpp>
 #include <sstream>
 
+#include "mcslam/app/frame_feed.hpp"
 #include "mcslam/core/error.hpp"
 #include "mcslam/eval/bonn.hpp"
 #include "mcslam/eval/metrics.hpp"
@@ -473,34 +474,41 @@ nlohmann::json run_frames(const RunRequest& request, const io::RgbdSequence& seq
     }
     passes.push_back(std::move(p));
   };
-  const auto prefetch = [&](std::size_t k) {
-    return std::async(std::launch::async, [&plan, k, factor = config.camera.depth_factor] {
-      return io::load_rgbd(plan.frames[k], factor);
-    });
+  // Frames are read, decoded and undistorted on the feed's thread, off the frame loop.
+  const auto load = [&plan, &system, factor = config.camera.depth_factor,
+                     width = config.camera.width, height = config.camera.height](std::size_t k) {
+    const io::FrameEntry& entry = plan.frames[k];
+    const io::RgbdImages raw = io::load_rgbd(entry, factor);
+    if (raw.rgb.cols != width || raw.rgb.rows != height)
+      throw InputError(file_error(entry.rgb_path, "image is " + std::to_string(raw.rgb.cols) + "x" +
+                                                      std::to_string(raw.rgb.rows) +
+                                                      " but the camera is " + std::to_string(width) +
+                                                      "x" + std::to_string(height)));
+    return system.prepare(raw.rgb, raw.depth);
   };
-  std::future<io::RgbdImages> next_images;
-  if (total > 0) next_images = prefetch(0);
-  for (std::size_t i = 0; i < total; ++i) {
+  std::vector<double> stamps;
+  stamps.reserve(total);
+  for (std::size_t k = 0; k < total; ++k) stamps.push_back(plan.frames[k].rgb_timestamp);
+  FrameFeed feed(load, std::move(stamps), FeedOptions{request.realtime, 2});
+  std::vector<double> latency_ms;
+  std::vector<std::size_t> dropped_before;
+  std::size_t offered = 0;  // frames taken or dropped so far
+  for (;;) {
     if (request.stop_requested && request.stop_requested()) {
       interrupted = true;
       break;
     }
-    const io::FrameEntry& entry = plan.frames[i];
-    // The images were decoded on a prefetch thread while the frame before was processed;
-    // image_load is the time the frame loop waited for them.
-    Stopwatch load_watch;
-    const io::RgbdImages images = next_images.get();
-    if (i + 1 < total) next_images = prefetch(i + 1);
-    if (images.rgb.cols != config.camera.width || images.rgb.rows != config.camera.height)
-      throw InputError(file_error(entry.rgb_path, "image is " + std::to_string(images.rgb.cols) +
-                                                      "x" + std::to_string(images.rgb.rows) +
-                                                      " but the camera is " +
-                                                      std::to_string(config.camera.width) + "x" +
-                                                      std::to_string(config.camera.height)));
-    load_ms.push_back(load_watch.elapsed_ms());
-    const slam::FrameResult r =
-        system.process(images.rgb, images.depth, entry.rgb_timestamp, entry.depth_timestamp);
-    done = i + 1;
+    // image_load is the time the frame loop waited for the feed (in real time: for the camera).
+    const std::optional<FedFrame> fed = feed.next();
+    if (!fed) break;
+    const io::FrameEntry& entry = plan.frames[fed->index];
+    const slam::PreparedImages& images = fed->images;
+    offered = fed->index + 1;
+    load_ms.push_back(fed->wait_ms);
+    dropped_before.push_back(fed->dropped_before);
+    const slam::FrameResult r = system.process(images, entry.rgb_timestamp, entry.depth_timestamp);
+    if (request.realtime) latency_ms.push_back(1000.0 * (feed.now_s() - fed->due_s));
+    ++done;
     tracked += r.state == slam::TrackingState::kOk ? 1 : 0;
     lost += r.state == slam::TrackingState::kLost ? 1 : 0;
     relocalised += r.relocalised ? 1 : 0;
@@ -590,14 +598,14 @@ nlohmann::json run_frames(const RunRequest& request, const io::RgbdSequence& seq
 
     if (plan.passes > 1 && (done % plan.frames_per_pass == 0 || done == total)) record_pass();
     // A checkpoint every few seconds: what a kill would leave is a clearly partial run.
-    if (checkpoint_watch.elapsed_ms() > 2000.0 && done < total) {
+    if (checkpoint_watch.elapsed_ms() > 2000.0 && offered < total) {
       io::write_tum_trajectory((out / "trajectory_online.txt").string(), system.online_trajectory(),
-                               "partial: the run was at frame " + std::to_string(done) + " of " +
-                                   std::to_string(total) + " (see status.json)");
-      status.running(done);
+                               "partial: the run was at frame " + std::to_string(offered) +
+                                   " of " + std::to_string(total) + " (see status.json)");
+      status.running(offered);
       checkpoint_watch.restart();
     }
-    bar.update(done, done / (wall.elapsed_ms() / 1000.0), lost);
+    bar.update(offered, done / (wall.elapsed_ms() / 1000.0), lost);
   }
   if (plan.passes > 1 && done > passes.size() * plan.frames_per_pass) record_pass();  // stopped
   system.finish();
@@ -608,7 +616,7 @@ nlohmann::json run_frames(const RunRequest& request, const io::RgbdSequence& seq
   // Outputs.
   const Trajectory trajectory = system.trajectory();
   const std::string note = interrupted
-                               ? "interrupted after frame " + std::to_string(processed) + " of " +
+                               ? "interrupted after frame " + std::to_string(offered) + " of " +
                                      std::to_string(total) + " (stopped on request)"
                                : std::string();
   io::write_tum_trajectory((out / "trajectory.txt").string(), trajectory, note);
@@ -622,11 +630,17 @@ nlohmann::json run_frames(const RunRequest& request, const io::RgbdSequence& seq
          "dynamic_points,constrained_points,constrained_point_residuals,"
          "constrained_line_residuals";
   for (const auto& name : stage_table.names) csv << ',' << name << "_ms";
-  csv << ",total_ms,rss_mib\n";
+  csv << ",total_ms,rss_mib";
+  // In real time: the frames dropped just before each processed one, and its latency (from the
+  // frame's time to its pose).
+  if (request.realtime) csv << ",dropped_before,latency_ms";
+  csv << '\n';
   for (std::size_t i = 0; i < frame_prefix.size(); ++i) {
     csv << frame_prefix[i] << std::fixed << std::setprecision(3);
     for (std::size_t k = 0; k < stage_table.names.size(); ++k) csv << ',' << stage_table.at(i, k);
-    csv << ',' << tracking_ms[i] << ',' << std::setprecision(1) << rss_mib[i] << '\n';
+    csv << ',' << tracking_ms[i] << ',' << std::setprecision(1) << rss_mib[i];
+    if (request.realtime) csv << ',' << dropped_before[i] << ',' << latency_ms[i];
+    csv << '\n';
   }
   io::write_file_atomic((out / "timings.csv").string(), csv.str());
 
@@ -695,11 +709,34 @@ nlohmann::json run_frames(const RunRequest& request, const io::RgbdSequence& seq
                         {"iou_median", compute_stats(propagation_iou).median},
                         {"stale_iou_median", compute_stats(stale_iou).median}};
     d["mover_frames"] = mover_frames;  // frames where motion without a box was found
+    // Every forward pass of a model, whichever frame used its boxes: the detector's actual rate.
+    if (system.detection_source()) {
+      const std::vector<double> passes_ms = system.detection_source()->pass_times_ms();
+      const SampleStats pass = compute_stats(passes_ms);
+      d["detector_passes"] = passes_ms.size();
+      d["detector_rate_hz"] = wall_s > 0.0 ? passes_ms.size() / wall_s : 0.0;
+      d["detector_pass_ms"] = {{"median", pass.median}, {"p95", pass.p95}};
+    }
     summary["dynamics"] = d;
     if (objects_file && frames_with_boxes > 0) {
       objects_file->append("\n]}\n");
       objects_file->commit();
     }
+  }
+  if (request.realtime) {
+    const std::vector<std::size_t> dropped = feed.dropped();
+    const SampleStats latency = compute_stats(latency_ms);
+    summary["realtime"] = {
+        {"enabled", true},
+        {"frames_offered", offered},
+        {"frames_processed", processed},
+        {"frames_dropped", dropped.size()},
+        {"processed_ratio", offered == 0 ? 0.0 : static_cast<double>(processed) / offered},
+        // Tracked frames over the frames the camera delivered: dropped frames count as missing.
+        {"coverage", offered == 0 ? 0.0 : static_cast<double>(tracked) / offered},
+        {"latency_median_ms", latency.median},
+        {"latency_p95_ms", latency.p95},
+        {"latency_max_ms", latency.max}};
   }
   summary["wall_time_s"] = wall_s;
   summary["frames_per_second"] = wall_s > 0 ? processed / wall_s : 0.0;
@@ -779,7 +816,7 @@ nlohmann::json run_frames(const RunRequest& request, const io::RgbdSequence& seq
     summary["passes"] = pass_rows;
   }
   io::write_file_atomic((out / "summary.json").string(), summary.dump(2) + "\n");
-  status.finished(interrupted, processed);
+  status.finished(interrupted, offered);
   return summary;
 }
 
@@ -788,6 +825,8 @@ nlohmann::json run_frames(const RunRequest& request, const io::RgbdSequence& seq
 nlohmann::json run_sequence(const RunRequest& request) {
   namespace fs = std::filesystem;
   if (request.repeat < 1) throw InputError("--repeat: must be at least 1");
+  if (request.realtime && request.repeat > 1)
+    throw InputError("--realtime: not with --repeat (a soak run plays frames as fast as it can)");
   io::SequenceOptions seq_options;
   if (request.associations_path) seq_options.associations_file = *request.associations_path;
   const io::RgbdSequence sequence = io::RgbdSequence::open(request.sequence_dir, seq_options);

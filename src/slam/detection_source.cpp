@@ -66,6 +66,11 @@ std::string ModelDetectionSource::describe() const {
   return s.str();
 }
 
+std::vector<double> ModelDetectionSource::pass_times_ms() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return pass_ms_;
+}
+
 void ModelDetectionSource::run() {
   for (;;) {
     std::pair<std::uint64_t, cv::Mat> job;
@@ -84,6 +89,7 @@ void ModelDetectionSource::run() {
     {
       std::lock_guard<std::mutex> lock(mutex_);
       newest_ = TimedDetections{job.first, std::move(boxes), ms};
+      pass_ms_.push_back(ms);
       running_.reset();
     }
     cv_.notify_all();

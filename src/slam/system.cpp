@@ -91,7 +91,42 @@ std::vector<perception::Detection> undistort_boxes(const PinholeCamera& camera,
 
 }  // namespace
 
+PreparedImages System::prepare(const cv::Mat& rgb, const cv::Mat& depth) const {
+  Stopwatch watch;
+  PreparedImages out;
+  out.rgb = rgb;
+  const bool valid_rgb =
+      !rgb.empty() && rgb.depth() == CV_8U && (rgb.channels() == 3 || rgb.channels() == 1);
+  const bool valid_depth = !depth.empty() && depth.type() == CV_32FC1;
+  if (!valid_rgb || !valid_depth || rgb.cols != camera_.width || rgb.rows != camera_.height ||
+      depth.size() != rgb.size()) {
+    out.problem = !valid_rgb     ? "the colour image is not 8-bit grey or BGR"
+                  : !valid_depth ? "the depth image is not CV_32FC1"
+                                 : "the images are not of the camera's size";
+    return out;
+  }
+  if (rgb.channels() == 3)
+    cv::cvtColor(rgb, out.gray, cv::COLOR_BGR2GRAY);
+  else
+    out.gray = rgb;
+  out.gray = undistorter_->apply_rgb(out.gray);
+  out.depth = undistorter_->apply_depth(depth);
+  out.prepare_ms = watch.elapsed_ms();
+  return out;
+}
+
 FrameResult System::process(const cv::Mat& rgb, const cv::Mat& depth, double timestamp,
+                            std::optional<double> depth_timestamp) {
+  PreparedImages images = prepare(rgb, depth);
+  const double undistort_ms = images.prepare_ms;
+  images.prepare_ms = -1.0;  // ran inline: listed as `undistort` below
+  FrameResult result = process(images, timestamp, depth_timestamp);
+  if (images.problem.empty()) result.times.stages.insert(result.times.stages.begin(),
+                                                        {"undistort", undistort_ms});
+  return result;
+}
+
+FrameResult System::process(const PreparedImages& images, double timestamp,
                             std::optional<double> depth_timestamp) {
   FrameResult result;
   result.frame_id = next_frame_id_++;
@@ -99,29 +134,20 @@ FrameResult System::process(const cv::Mat& rgb, const cv::Mat& depth, double tim
   FrameRecord record;
   record.timestamp = timestamp;
 
-  const bool valid_rgb =
-      !rgb.empty() && rgb.depth() == CV_8U && (rgb.channels() == 3 || rgb.channels() == 1);
-  const bool valid_depth = !depth.empty() && depth.type() == CV_32FC1;
-  if (!valid_rgb || !valid_depth || rgb.cols != camera_.width || rgb.rows != camera_.height ||
-      depth.size() != rgb.size() || finished_) {
+  const cv::Mat& rgb = images.rgb;
+  if (!images.problem.empty() || finished_) {
     result.state = TrackingState::kLost;
     records_.push_back(record);
     return result;
   }
+  if (images.prepare_ms >= 0.0) result.times.add_concurrent("prepare", images.prepare_ms);
 
   // The detector starts on this image now and runs while the features are extracted.
   if (detections_ && rgb.channels() == 3) detections_->submit(result.frame_id, timestamp, rgb);
 
   Stopwatch watch;
-  cv::Mat gray;
-  if (rgb.channels() == 3)
-    cv::cvtColor(rgb, gray, cv::COLOR_BGR2GRAY);
-  else
-    gray = rgb;
-  gray = undistorter_->apply_rgb(gray);
-  const cv::Mat undistorted_depth = undistorter_->apply_depth(depth);
-  result.times.add("undistort", watch.elapsed_ms());
-
+  const cv::Mat& gray = images.gray;
+  const cv::Mat& undistorted_depth = images.depth;
   watch.restart();
   FrameMotion motion;
   if (options_.tracker.compensate_depth_time && depth_timestamp &&

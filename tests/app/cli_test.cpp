@@ -230,6 +230,35 @@ TEST(CliRun, WritesAllOutputs) {
   ASSERT_TRUE(summary["per_frame_counts"].contains("line_inliers"));
 }
 
+TEST(CliRun, RealTimeRunAccountsForEveryFrame) {
+  // 40 frames at 30 Hz delivered at their timestamps: each one is processed or dropped, and the
+  // summary and timings.csv say which, with the latency of each processed frame.
+  const fs::path out = root() / "out_realtime";
+  const CliResult r = run_cli("run " + quote(main_sequence().string()) + " --output " +
+                              quote(out.string()) + " --realtime -q");
+  ASSERT_EQ(r.exit_code, 0) << r;
+  const nlohmann::json summary = read_json(out / "summary.json");
+  ASSERT_TRUE(summary.contains("realtime")) << summary.dump(1);
+  const auto& rt = summary["realtime"];
+  EXPECT_EQ(rt["frames_offered"].get<int>(), 40);
+  EXPECT_EQ(rt["frames_processed"].get<int>() + rt["frames_dropped"].get<int>(), 40);
+  EXPECT_EQ(rt["frames_processed"].get<int>(), summary["frames"].get<int>());
+  EXPECT_GT(rt["latency_median_ms"].get<double>(), 0.0);
+  EXPECT_LE(rt["coverage"].get<double>(), rt["processed_ratio"].get<double>());
+  const auto csv = lines_of(out / "timings.csv");
+  ASSERT_EQ(csv.size(), static_cast<std::size_t>(rt["frames_processed"].get<int>()) + 1);
+  EXPECT_NE(csv.front().find(",dropped_before,latency_ms"), std::string::npos) << csv.front();
+  // The images were prepared off the frame loop.
+  EXPECT_TRUE(summary["stages"].contains("prepare"));
+  EXPECT_FALSE(summary["stages"].contains("undistort"));
+  // Together with --repeat it is refused, with one message.
+  const CliResult both = run_cli("run " + quote(main_sequence().string()) + " --output " +
+                                 quote((root() / "out_rt_repeat").string()) +
+                                 " --realtime --repeat 2 -q");
+  EXPECT_EQ(both.exit_code, 1) << both;
+  EXPECT_NE(both.err.find("--realtime"), std::string::npos) << both;
+}
+
 TEST(CliRun, SavedMapIsAValidPlyAndJson) {
   const MainRun& run = main_run();
   ASSERT_EQ(run.result.exit_code, 0) << run.result;

@@ -51,6 +51,11 @@ struct RunRequest {
   /// (and its ground truth) are shifted by k sequence lengths, so the camera jumps back to the
   /// start at each pass. The summary gets per-pass figures (speed, memory, map size, ATE).
   int repeat = 1;
+  /// Deliver frames at their timestamps, as a live camera would (--realtime): a reader thread
+  /// releases each frame at its time and the run takes the newest, dropping what it could not
+  /// take in time. Dropped frames, latency (frame time to pose) and the detector's actual rate
+  /// go into timings.csv and summary.json (`realtime`). Not with repeat > 1.
+  bool realtime = false;
   /// Asked between frames; when it returns true the run stops early, writes every output for the
   /// frames processed so far and marks them interrupted (Ctrl-C in the command-line app).
   std::function<bool()> stop_requested;

@@ -39,6 +39,9 @@ class DetectionSource {
   virtual std::optional<TimedDetections> collect(std::uint64_t frame_id, bool wait) = 0;
   /// For logs and summaries: "model yolov8n_320.onnx (YOLOv8, 320x320)" or "file ...".
   virtual std::string describe() const = 0;
+  /// The time (ms) of every forward pass run so far, in order (none for a file): the detector's
+  /// actual rate is their count over the run's wall time.
+  virtual std::vector<double> pass_times_ms() const { return {}; }
 };
 
 /// Boxes read from a detections file, looked up by timestamp. A frame whose timestamp is not in
@@ -69,12 +72,14 @@ class ModelDetectionSource final : public DetectionSource {
   void submit(std::uint64_t frame_id, double timestamp, const cv::Mat& bgr) override;
   std::optional<TimedDetections> collect(std::uint64_t frame_id, bool wait) override;
   std::string describe() const override;
+  std::vector<double> pass_times_ms() const override;
 
  private:
   void run();
 
   perception::Detector detector_;
-  std::mutex mutex_;
+  mutable std::mutex mutex_;
+  std::vector<double> pass_ms_;  // every forward pass
   std::condition_variable cv_;
   std::optional<std::pair<std::uint64_t, cv::Mat>> job_;  // waiting for the worker
   std::optional<std::uint64_t> running_;                  // frame being detected

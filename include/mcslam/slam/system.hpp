@@ -69,6 +69,17 @@ struct FrameResult {
   int mover_points = 0;   // features they took out
 };
 
+/// A frame's images as the pipeline takes them, made by System::prepare (which may run on
+/// another thread while System::process works on the frame before).
+struct PreparedImages {
+  cv::Mat rgb;    ///< the raw colour (BGR) or grey image: for the detector and keyframe colours
+  cv::Mat gray;   ///< undistorted grey image
+  cv::Mat depth;  ///< undistorted depth, CV_32FC1 in metres
+  double prepare_ms = 0.0;  ///< what prepare() took (grey conversion and undistortion)
+  /// Empty when the frame is usable; otherwise why not (wrong size or type): it is then lost.
+  std::string problem;
+};
+
 class System {
  public:
   /// Throws InputError when the camera or the options are invalid, or the vocabulary file
@@ -89,6 +100,16 @@ class System {
   /// difference is compensated with the tracked motion when compensate_depth_time is on.
   FrameResult process(const cv::Mat& rgb, const cv::Mat& depth, double timestamp,
                       std::optional<double> depth_timestamp = std::nullopt);
+  /// The same for images made by prepare(); its time is listed as the concurrent stage
+  /// `prepare` (the frame did not wait for it), where process(rgb, depth, ...) lists the
+  /// `undistort` stage it ran inline.
+  FrameResult process(const PreparedImages& images, double timestamp,
+                      std::optional<double> depth_timestamp = std::nullopt);
+
+  /// Grey conversion and undistortion of one frame's raw images (see process()). Reads only
+  /// what the constructor made, so it may run on any thread, alongside process(). Never throws
+  /// for image content: a wrong size or type is reported in PreparedImages::problem.
+  PreparedImages prepare(const cv::Mat& rgb, const cv::Mat& depth) const;
 
   /// Boxes for every later frame come from `source` (a model on its own thread, or a file);
   /// without one the system runs on geometry alone. With `wait`, each frame waits for its own

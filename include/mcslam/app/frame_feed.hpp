@@ -1,0 +1,92 @@
+#pragma once
+// The frames of `mcslam run`, read, decoded and undistorted on a thread of their own, off the
+// frame loop.
+//
+// In order (the default): every frame in turn; the reader keeps a few frames ready, and the loop
+// waits only when the reader is behind.
+// Real time (--realtime): frames become available at their timestamps, as a camera delivers them
+// (the reader prepares each one ahead of its time and releases it at that time). The loop takes
+// the newest available frame; one that a newer frame replaces before the loop took it is
+// dropped, as a camera driver drops what a slow consumer misses. The clock starts when the first
+// frame is ready.
+
+#include <chrono>
+#include <condition_variable>
+#include <cstddef>
+#include <deque>
+#include <exception>
+#include <functional>
+#include <mutex>
+#include <optional>
+#include <thread>
+#include <vector>
+
+#include "mcslam/slam/system.hpp"
+
+namespace mcslam::app {
+
+struct FeedOptions {
+  bool realtime = false;
+  /// In order: how many prepared frames the reader keeps ready (at least 1).
+  std::size_t lookahead = 2;
+};
+
+struct FedFrame {
+  std::size_t index = 0;  ///< in the feed's list of frames
+  slam::PreparedImages images;
+  /// When the frame was due (real time: its timestamp on the feed's clock) and when it was
+  /// ready, in seconds since the feed's clock started; ready > due when preparing it was late.
+  double due_s = 0.0;
+  double ready_s = 0.0;
+  double wait_ms = 0.0;            ///< how long next() waited for it
+  std::size_t dropped_before = 0;  ///< frames dropped since the frame taken before
+};
+
+class FrameFeed {
+ public:
+  /// Prepares frame k (reads, decodes, undistorts); may throw InputError, which next() rethrows
+  /// when the loop reaches that frame.
+  using Loader = std::function<slam::PreparedImages(std::size_t)>;
+
+  /// `timestamps`: capture time (s) of each frame, non-decreasing; in real time frame k is due
+  /// timestamps[k] - timestamps[0] seconds after the clock starts. Starts the reader thread.
+  FrameFeed(Loader load, std::vector<double> timestamps, FeedOptions options);
+  /// Stops the reader (between two frames) and joins it.
+  ~FrameFeed();
+  FrameFeed(const FrameFeed&) = delete;
+  FrameFeed& operator=(const FrameFeed&) = delete;
+
+  /// The next frame (real time: the newest available one), waiting for it when none is ready;
+  /// nullopt once every frame was taken or dropped. Rethrows the loader's exception.
+  std::optional<FedFrame> next();
+  /// Seconds on the feed's clock (0 until the first frame is ready).
+  double now_s() const;
+  /// Frames dropped so far (real time only) and their indices.
+  std::vector<std::size_t> dropped() const;
+
+ private:
+  struct Slot {
+    std::size_t index = 0;
+    slam::PreparedImages images;
+    std::exception_ptr error;
+    double due_s = 0.0;
+    double ready_s = 0.0;
+  };
+  void read();
+  double clock_s() const;  // under mutex_
+
+  Loader load_;
+  std::vector<double> timestamps_;
+  FeedOptions options_;
+  mutable std::mutex mutex_;
+  std::condition_variable changed_;
+  std::deque<Slot> ready_;
+  std::vector<std::size_t> dropped_;
+  std::size_t dropped_reported_ = 0;  // dropped_.size() when next() last returned
+  std::optional<std::chrono::steady_clock::time_point> start_;
+  bool finished_ = false;  // the reader has published its last frame (or an error)
+  bool stop_ = false;
+  std::thread reader_;
+};
+
+}  // namespace mcslam::app

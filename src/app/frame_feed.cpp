@@ -1,0 +1,109 @@
+#include "mcslam/app/frame_feed.hpp"
+
+#include <algorithm>
+#include <chrono>
+
+namespace mcslam::app {
+
+using Clock = std::chrono::steady_clock;
+
+FrameFeed::FrameFeed(Loader load, std::vector<double> timestamps, FeedOptions options)
+    : load_(std::move(load)), timestamps_(std::move(timestamps)), options_(options) {
+  options_.lookahead = std::max<std::size_t>(options_.lookahead, 1);
+  reader_ = std::thread([this] { read(); });
+}
+
+FrameFeed::~FrameFeed() {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    stop_ = true;
+  }
+  changed_.notify_all();
+  reader_.join();
+}
+
+double FrameFeed::clock_s() const {
+  if (!start_) return 0.0;
+  return std::chrono::duration<double>(Clock::now() - *start_).count();
+}
+
+double FrameFeed::now_s() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return clock_s();
+}
+
+std::vector<std::size_t> FrameFeed::dropped() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return dropped_;
+}
+
+void FrameFeed::read() {
+  for (std::size_t k = 0; k < timestamps_.size(); ++k) {
+    Slot slot;
+    slot.index = k;
+    {
+      std::unique_lock<std::mutex> lock(mutex_);
+      // In order, keep at most `lookahead` frames ready; in real time never wait for the loop.
+      if (!options_.realtime)
+        changed_.wait(lock, [&] { return stop_ || ready_.size() < options_.lookahead; });
+      if (stop_) break;
+    }
+    try {
+      slot.images = load_(k);
+    } catch (...) {
+      slot.error = std::current_exception();
+    }
+    std::unique_lock<std::mutex> lock(mutex_);
+    if (!start_) start_ = Clock::now();  // the camera starts with its first frame
+    if (options_.realtime && !slot.error) {
+      slot.due_s = timestamps_[k] - timestamps_.front();
+      const auto due = *start_ + std::chrono::duration_cast<Clock::duration>(
+                                     std::chrono::duration<double>(slot.due_s));
+      changed_.wait_until(lock, due, [&] { return stop_; });
+      if (stop_) break;
+    } else {
+      slot.due_s = clock_s();
+    }
+    slot.ready_s = std::max(clock_s(), slot.due_s);
+    const bool error = slot.error != nullptr;
+    // Newest wins: a frame the loop has not taken yet is dropped (never an error, which ends
+    // the feed and must reach the loop).
+    if (options_.realtime)
+      while (!ready_.empty() && !ready_.back().error) {
+        dropped_.push_back(ready_.back().index);
+        ready_.pop_back();
+      }
+    ready_.push_back(std::move(slot));
+    lock.unlock();
+    changed_.notify_all();
+    if (error) break;
+  }
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    finished_ = true;
+  }
+  changed_.notify_all();
+}
+
+std::optional<FedFrame> FrameFeed::next() {
+  const auto begin = Clock::now();
+  std::unique_lock<std::mutex> lock(mutex_);
+  changed_.wait(lock, [&] { return !ready_.empty() || finished_; });
+  if (ready_.empty()) return std::nullopt;
+  Slot slot = std::move(ready_.front());
+  ready_.pop_front();
+  FedFrame frame;
+  frame.index = slot.index;
+  frame.images = std::move(slot.images);
+  frame.due_s = slot.due_s;
+  frame.ready_s = slot.ready_s;
+  frame.dropped_before = dropped_.size() - dropped_reported_;
+  dropped_reported_ = dropped_.size();
+  lock.unlock();
+  changed_.notify_all();
+  if (slot.error) std::rethrow_exception(slot.error);
+  frame.wait_ms = std::chrono::duration<double, std::milli>(Clock::now() - begin).count();
+  return frame;
+}
+
+}  // namespace mcslam::app

@@ -1,0 +1,119 @@
+// FrameFeed: frames in order, or at their timestamps with the newest winning (real time); every
+// frame is either taken or dropped, once; the loader's errors reach the loop at their frame.
+
+#include "mcslam/app/frame_feed.hpp"
+
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <thread>
+
+#include "mcslam/core/error.hpp"
+
+namespace mcslam::app {
+namespace {
+
+using std::chrono::milliseconds;
+
+/// A loader that only records which frame it made (in `prepare_ms`).
+FrameFeed::Loader counting_loader(std::size_t throw_at = static_cast<std::size_t>(-1)) {
+  return [throw_at](std::size_t k) {
+    if (k == throw_at) throw InputError("frame " + std::to_string(k) + ": cannot read image");
+    slam::PreparedImages images;
+    images.prepare_ms = static_cast<double>(k);
+    return images;
+  };
+}
+
+std::vector<double> stamps(std::size_t n, double gap) {
+  std::vector<double> t;
+  for (std::size_t k = 0; k < n; ++k) t.push_back(100.0 + gap * static_cast<double>(k));
+  return t;
+}
+
+TEST(FrameFeed, InOrderGivesEveryFrameOnce) {
+  FrameFeed feed(counting_loader(), stamps(25, 1.0), FeedOptions{false, 2});
+  std::size_t expected = 0;
+  while (auto f = feed.next()) {
+    EXPECT_EQ(f->index, expected);
+    EXPECT_EQ(f->images.prepare_ms, static_cast<double>(expected));
+    EXPECT_EQ(f->dropped_before, 0u);
+    ++expected;
+  }
+  EXPECT_EQ(expected, 25u);
+  EXPECT_TRUE(feed.dropped().empty());
+  EXPECT_FALSE(feed.next().has_value());  // stays at the end
+}
+
+TEST(FrameFeed, RealTimeReleasesFramesAtTheirTimestamps) {
+  // 8 frames 30 ms apart taken by a loop that is always waiting: none is dropped, and none is
+  // released before its time.
+  FrameFeed feed(counting_loader(), stamps(8, 0.03), FeedOptions{true, 2});
+  std::size_t count = 0;
+  while (auto f = feed.next()) {
+    EXPECT_EQ(f->index, count);
+    EXPECT_NEAR(f->due_s, 0.03 * static_cast<double>(f->index), 1e-9);
+    EXPECT_GE(feed.now_s() + 1e-6, f->due_s) << "frame " << f->index << " came early";
+    EXPECT_GE(f->ready_s, f->due_s);
+    ++count;
+  }
+  EXPECT_EQ(count, 8u);
+  EXPECT_TRUE(feed.dropped().empty());
+}
+
+TEST(FrameFeed, RealTimeDropsWhatASlowLoopMisses) {
+  // 30 frames 5 ms apart and a loop that needs 40 ms a frame: the newest frame wins.
+  FrameFeed feed(counting_loader(), stamps(30, 0.005), FeedOptions{true, 2});
+  std::vector<std::size_t> taken;
+  std::size_t reported_drops = 0;
+  while (auto f = feed.next()) {
+    if (!taken.empty()) {
+      EXPECT_GT(f->index, taken.back());
+    }
+    taken.push_back(f->index);
+    reported_drops += f->dropped_before;
+    std::this_thread::sleep_for(milliseconds(40));
+  }
+  const std::vector<std::size_t> dropped = feed.dropped();
+  EXPECT_GE(dropped.size(), 1u);
+  EXPECT_EQ(reported_drops, dropped.size());
+  EXPECT_EQ(taken.size() + dropped.size(), 30u);
+  EXPECT_EQ(taken.back(), 29u) << "the last frame is never dropped";
+  std::vector<bool> seen(30, false);
+  for (std::size_t k : taken) seen[k] = true;
+  for (std::size_t k : dropped) {
+    EXPECT_FALSE(seen[k]) << "frame " << k << " both taken and dropped";
+    seen[k] = true;
+  }
+  for (std::size_t k = 0; k < 30; ++k) EXPECT_TRUE(seen[k]) << "frame " << k << " lost";
+}
+
+TEST(FrameFeed, LoaderErrorsReachTheLoopAtTheirFrame) {
+  for (const bool realtime : {false, true}) {
+    FrameFeed feed(counting_loader(3), stamps(10, 0.001), FeedOptions{realtime, 2});
+    std::size_t last = 0;
+    bool thrown = false;
+    try {
+      while (auto f = feed.next()) last = f->index;
+    } catch (const InputError& e) {
+      thrown = true;
+      EXPECT_NE(std::string(e.what()).find("frame 3"), std::string::npos) << e.what();
+    }
+    EXPECT_TRUE(thrown) << (realtime ? "real time" : "in order");
+    EXPECT_LE(last, 2u);
+  }
+}
+
+TEST(FrameFeed, StopsCleanlyWhenLeftEarly) {
+  // A real-time feed of frames 10 s apart destroyed after one frame: the reader wakes from its
+  // wait for frame 1 at once and joins (without the wake-up this takes 10 s).
+  const auto begin = std::chrono::steady_clock::now();
+  {
+    FrameFeed feed(counting_loader(), stamps(100, 10.0), FeedOptions{true, 2});
+    ASSERT_TRUE(feed.next().has_value());
+  }
+  EXPECT_LT(std::chrono::steady_clock::now() - begin, std::chrono::seconds(5));
+}
+
+}  // namespace
+}  // namespace mcslam::app
