@@ -220,7 +220,7 @@ int main(int argc, char** argv) {
       ->delimiter(',');
   bench_cmd
       ->add_option("--modes", bench.modes,
-                   "Comma-separated subset of sequential,threaded (default both)")
+                   "Comma-separated subset of sequential,threaded,realtime (default: sequential,threaded; realtime: threaded with --realtime)")
       ->delimiter(',');
   bench_cmd
       ->add_option("--sequences", bench.sequences,

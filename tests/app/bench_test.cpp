@@ -112,6 +112,9 @@ TEST(BenchPlan, ConfigurationsAndModes) {
 
   EXPECT_EQ(select_modes({}).size(), 2u);
   EXPECT_EQ(select_modes({"threaded"}), std::vector<Mode>{Mode::kThreaded});
+  EXPECT_EQ(select_modes({"realtime", "sequential"}),
+            (std::vector<Mode>{Mode::kSequential, Mode::kRealtime}));
+  EXPECT_STREQ(to_string(Mode::kRealtime), "realtime");
   expect_input_error([] { select_modes({"parallel"}); }, {"--modes", "'parallel'"});
 }
 
@@ -154,6 +157,14 @@ TEST(BenchPlan, RunArguments) {
   EXPECT_FALSE(contains(full, "--model"));
   EXPECT_FALSE(contains(full, "--no-constraints"));
   EXPECT_TRUE(contains(full, "--save-map --save-overlays"));
+  EXPECT_FALSE(contains(full, "--realtime"));
+
+  spec.mode = Mode::kRealtime;  // threaded, frames at their timestamps
+  args = run_arguments(spec, model, 0, std::nullopt);
+  std::string realtime;
+  for (const auto& a : args) realtime += a + " ";
+  EXPECT_TRUE(contains(realtime, "--threaded"));
+  EXPECT_TRUE(contains(realtime, "--realtime"));
   EXPECT_EQ(box_source_for(seq, model.model).describe(), "detections.json in the sequence");
 }
 
@@ -344,6 +355,31 @@ TEST(BenchResults, SummaryTakesAccuracyFromSequentialAndSpeedFromThreadedRuns) {
   ASSERT_EQ(full.stages_ms.size(), 1u);
   EXPECT_DOUBLE_EQ(full.stages_ms[0].second, 8.5);
   EXPECT_DOUBLE_EQ(*full.dynamics_ms, 4.0);
+
+  // Real-time runs have figures of their own and change none of the others.
+  ConfigResult with_realtime;
+  with_realtime.config = full.config;
+  with_realtime.runs = full.runs;
+  for (int k = 1; k <= 3; ++k) {
+    RunRecord r = record(Mode::kRealtime, k, 0.03 + 0.001 * k, 20);
+    r.processed_ratio = 0.9 + 0.01 * k;
+    r.latency_ms = 30.0 + k;
+    r.detector_rate_hz = 8.0;
+    r.stages_ms = {{"orb_extract", 12.0}};
+    with_realtime.runs.push_back(r);
+  }
+  summarise(with_realtime);
+  EXPECT_DOUBLE_EQ(with_realtime.ate->median, full.ate->median);
+  EXPECT_DOUBLE_EQ(with_realtime.fps->median, full.fps->median);
+  EXPECT_DOUBLE_EQ(with_realtime.stages_ms[0].second, full.stages_ms[0].second);
+  ASSERT_TRUE(with_realtime.ate_realtime && with_realtime.processed && with_realtime.latency_ms);
+  EXPECT_DOUBLE_EQ(with_realtime.ate_realtime->median, 0.032);
+  EXPECT_DOUBLE_EQ(with_realtime.processed->median, 0.92);
+  EXPECT_DOUBLE_EQ(with_realtime.latency_ms->median, 32.0);
+  EXPECT_DOUBLE_EQ(with_realtime.detector_rate_hz->median, 8.0);
+  ASSERT_EQ(with_realtime.stages_ms_realtime.size(), 1u);
+  EXPECT_DOUBLE_EQ(with_realtime.stages_ms_realtime[0].second, 12.0);
+  EXPECT_FALSE(full.ate_realtime.has_value());
 
   // Only threaded runs: they give accuracy too.
   ConfigResult threaded;

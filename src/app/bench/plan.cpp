@@ -161,22 +161,36 @@ std::vector<Config> select_configs(const std::vector<std::string>& names) {
   return selected;
 }
 
-const char* to_string(Mode mode) { return mode == Mode::kSequential ? "sequential" : "threaded"; }
+const char* to_string(Mode mode) {
+  switch (mode) {
+    case Mode::kSequential:
+      return "sequential";
+    case Mode::kThreaded:
+      return "threaded";
+    case Mode::kRealtime:
+      return "realtime";
+  }
+  return "threaded";
+}
 
 std::vector<Mode> select_modes(const std::vector<std::string>& names) {
   if (names.empty()) return {Mode::kSequential, Mode::kThreaded};
-  bool sequential = false, threaded = false;
+  bool sequential = false, threaded = false, realtime = false;
   for (const std::string& n : names) {
     if (n == "sequential")
       sequential = true;
     else if (n == "threaded")
       threaded = true;
+    else if (n == "realtime")
+      realtime = true;
     else
-      throw InputError("--modes: unknown mode '" + n + "' (use sequential, threaded or both)");
+      throw InputError("--modes: unknown mode '" + n +
+                       "' (use sequential, threaded, realtime or several)");
   }
   std::vector<Mode> modes;
   if (sequential) modes.push_back(Mode::kSequential);
   if (threaded) modes.push_back(Mode::kThreaded);
+  if (realtime) modes.push_back(Mode::kRealtime);
   return modes;
 }
 
@@ -218,6 +232,7 @@ std::vector<std::string> run_arguments(const RunSpec& spec, const BoxSource& box
     }
     if (!spec.config->constraints) args.push_back("--no-constraints");
   }
+  if (spec.mode == Mode::kRealtime) args.push_back("--realtime");
   if (max_frames > 0) args.insert(args.end(), {"--max-frames", std::to_string(max_frames)});
   if (spec.save_map) args.push_back("--save-map");
   if (spec.save_overlays) args.push_back("--save-overlays");

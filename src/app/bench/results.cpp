@@ -164,6 +164,9 @@ RunRecord score_run(const RunSpec& spec, const std::string& relative_output,
     if (number_at(summary, {"loops", "keyframes_checked"}).value_or(0) > 0)
       r.loop_detection_ms = number_at(summary, {"loops", "detection_median_ms"});
     r.relocalisations = number_at(summary, {"relocalisations"});
+    r.processed_ratio = number_at(summary, {"realtime", "processed_ratio"});
+    r.latency_ms = number_at(summary, {"realtime", "latency_median_ms"});
+    r.detector_rate_hz = number_at(summary, {"dynamics", "detector_rate_hz"});
     if (number_at(summary, {"relocalisation", "attempts"}).value_or(0) > 0)
       r.relocalisation_query_ms = number_at(summary, {"relocalisation", "query_median_ms"});
     std::vector<std::string> order = {"image_load"};
@@ -213,9 +216,14 @@ std::optional<Spread> spread(const std::vector<double>& values) {
 void summarise(ConfigResult& c) {
   const bool sequential = has_mode(c, Mode::kSequential);
   const bool threaded = has_mode(c, Mode::kThreaded);
-  std::vector<const RunRecord*> accuracy, speed, threaded_runs;
+  const bool offline = sequential || threaded;
+  std::vector<const RunRecord*> accuracy, speed, threaded_runs, realtime_runs;
   for (const RunRecord& r : c.runs) {
     if (!r.ok) continue;
+    // Real-time runs give accuracy and speed figures of their own, and the main ones only when
+    // there is nothing else.
+    if (r.mode == Mode::kRealtime) realtime_runs.push_back(&r);
+    if (offline && r.mode == Mode::kRealtime) continue;
     if (!sequential || r.mode == Mode::kSequential) accuracy.push_back(&r);
     if (!threaded || r.mode == Mode::kThreaded) speed.push_back(&r);
     if (r.mode == Mode::kThreaded) threaded_runs.push_back(&r);
@@ -244,16 +252,25 @@ void summarise(ConfigResult& c) {
   c.loop_detection_ms = collect(all, &RunRecord::loop_detection_ms);
   c.relocalisations = collect(all, &RunRecord::relocalisations);
   c.relocalisation_query_ms = collect(all, &RunRecord::relocalisation_query_ms);
-  c.stages_ms.clear();
-  if (!speed.empty()) {
-    for (const auto& [name, ms] : speed.front()->stages_ms) {
+  c.ate_realtime = collect(realtime_runs, &RunRecord::ate_rmse_m);
+  c.processed = collect(realtime_runs, &RunRecord::processed_ratio);
+  c.latency_ms = collect(realtime_runs, &RunRecord::latency_ms);
+  c.detector_rate_hz = collect(realtime_runs, &RunRecord::detector_rate_hz);
+  c.fps_realtime = collect(realtime_runs, &RunRecord::fps);
+  const auto stage_medians = [](const std::vector<const RunRecord*>& runs) {
+    std::vector<std::pair<std::string, double>> out;
+    if (runs.empty()) return out;
+    for (const auto& [name, ms] : runs.front()->stages_ms) {
       std::vector<double> v;
-      for (const RunRecord* r : speed)
+      for (const RunRecord* r : runs)
         for (const auto& [n, x] : r->stages_ms)
           if (n == name) v.push_back(x);
-      c.stages_ms.emplace_back(name, median_of(v));
+      out.emplace_back(name, median_of(v));
     }
-  }
+    return out;
+  };
+  c.stages_ms = stage_medians(speed);
+  c.stages_ms_realtime = stage_medians(realtime_runs);
 }
 
 std::optional<std::pair<std::string, double>> our_figure(const SequenceResult& sequence,
@@ -284,8 +301,13 @@ std::string markdown(const BenchMeta& meta, const std::vector<SequenceResult>& s
   md << "# mcslam bench\n\n";
   md << meta.created_utc << " · `" << meta.command << "` · " << meta.hostname << ", " << meta.cpus
      << " CPUs · " << meta.runs_per_mode << " run(s) per mode ("
-     << (meta.modes.size() == 2 ? "sequential and threaded"
-                                : std::string(to_string(meta.modes.front())))
+     << [&] {
+          std::string names;
+          for (std::size_t i = 0; i < meta.modes.size(); ++i)
+            names += (i == 0 ? "" : (i + 1 == meta.modes.size() ? " and " : ", ")) +
+                     std::string(to_string(meta.modes[i]));
+          return names;
+        }()
      << ") · wall time " << fixed(meta.wall_time_s / 60.0, 1) << " min\n\n";
   const bool sequential = std::count(meta.modes.begin(), meta.modes.end(), Mode::kSequential);
   const bool threaded = std::count(meta.modes.begin(), meta.modes.end(), Mode::kThreaded);
@@ -341,35 +363,60 @@ std::string markdown(const BenchMeta& meta, const std::vector<SequenceResult>& s
          << cell(c.relocalisation_query_ms, 2, n) << " |\n";
     }
 
+    // Live camera: frames delivered at their timestamps (--realtime).
+    const bool any_realtime = std::any_of(s.configs.begin(), s.configs.end(), [](const auto& c) {
+      return has_mode(c, Mode::kRealtime);
+    });
+    if (any_realtime) {
+      md << "\nReal time (`--realtime`: frames delivered at their timestamps, the newest wins; ATE "
+            "on the frames processed):\n\n| configuration | ATE RMSE (m) | frames processed | "
+            "latency median (ms) | fps | detector passes/s |\n|---|---|---|---|---|---|\n";
+      for (const ConfigResult& c : s.configs) {
+        if (c.skipped || !has_mode(c, Mode::kRealtime)) continue;
+        const int n = runs_in_mode(c, Mode::kRealtime);
+        md << "| " << c.config.label << " | " << cell(c.ate_realtime, 4, n) << " | "
+           << percent_cell(c.processed, n) << " | " << cell(c.latency_ms, 1, n) << " | "
+           << cell(c.fps_realtime, 1, n) << " | "
+           << (c.config.boxes ? cell(c.detector_rate_hz, 1, n) : std::string("–")) << " |\n";
+      }
+    }
+
     // Per-stage medians: the stages of the configuration with the most, in its pipeline order,
     // then any others.
-    std::vector<const ConfigResult*> by_stages;
-    for (const ConfigResult& c : s.configs) by_stages.push_back(&c);
-    std::stable_sort(by_stages.begin(), by_stages.end(), [](const auto* a, const auto* b) {
-      return a->stages_ms.size() > b->stages_ms.size();
-    });
-    std::vector<std::string> stages;
-    for (const ConfigResult* c : by_stages)
-      for (const auto& [name, ms] : c->stages_ms)
-        if (std::find(stages.begin(), stages.end(), name) == stages.end()) stages.push_back(name);
-    if (!stages.empty()) {
-      md << "\nPer-stage median (ms), " << (threaded ? "threaded" : "sequential")
-         << " runs:\n\n| configuration |";
+    using StageList = std::vector<std::pair<std::string, double>>;
+    const auto stage_table = [&](StageList ConfigResult::*field, const std::string& runs) {
+      std::vector<const ConfigResult*> by_stages;
+      for (const ConfigResult& c : s.configs) by_stages.push_back(&c);
+      std::stable_sort(by_stages.begin(), by_stages.end(), [&](const auto* a, const auto* b) {
+        return (a->*field).size() > (b->*field).size();
+      });
+      std::vector<std::string> stages;
+      for (const ConfigResult* c : by_stages)
+        for (const auto& [name, ms] : c->*field)
+          if (std::find(stages.begin(), stages.end(), name) == stages.end())
+            stages.push_back(name);
+      if (stages.empty()) return;
+      md << "\nPer-stage median (ms), " << runs << " runs:\n\n| configuration |";
       for (const auto& name : stages) md << ' ' << name << " |";
       md << "\n|---|";
       for (std::size_t i = 0; i < stages.size(); ++i) md << "---|";
       md << "\n";
       for (const ConfigResult& c : s.configs) {
-        if (c.skipped || c.stages_ms.empty()) continue;
+        if (c.skipped || (c.*field).empty()) continue;
         md << "| " << c.config.label << " |";
         for (const auto& name : stages) {
-          const auto it = std::find_if(c.stages_ms.begin(), c.stages_ms.end(),
+          const auto it = std::find_if((c.*field).begin(), (c.*field).end(),
                                        [&](const auto& p) { return p.first == name; });
-          md << ' ' << (it == c.stages_ms.end() ? std::string("–") : fixed(it->second, 1)) << " |";
+          md << ' ' << (it == (c.*field).end() ? std::string("–") : fixed(it->second, 1))
+             << " |";
         }
         md << "\n";
       }
-    }
+    };
+    stage_table(&ConfigResult::stages_ms,
+                threaded ? "threaded" : (sequential ? "sequential" : "real-time"));
+    if (any_realtime && (sequential || threaded))
+      stage_table(&ConfigResult::stages_ms_realtime, "real-time");
 
     if (!s.published.empty()) {
       std::vector<std::string> methods;
@@ -451,6 +498,9 @@ nlohmann::json to_json(const RunRecord& r) {
           {"fps", optional_number(r.fps)},
           {"tracking_ms", optional_number(r.tracking_ms)},
           {"dynamics_ms", optional_number(r.dynamics_ms)},
+          {"processed_ratio", optional_number(r.processed_ratio)},
+          {"latency_ms", optional_number(r.latency_ms)},
+          {"detector_rate_hz", optional_number(r.detector_rate_hz)},
           {"wall_s", r.wall_s},
           {"stages_ms", stages_json(r.stages_ms)},
           {"output", r.output}};
@@ -490,6 +540,13 @@ nlohmann::json results_json(const BenchMeta& meta, const std::vector<SequenceRes
                                {"tracking_ms", to_json(c.tracking_ms)},
                                {"dynamics_ms", optional_number(c.dynamics_ms)},
                                {"stages_ms", stages_json(c.stages_ms)},
+                               // Real-time runs (null without any).
+                               {"ate_rmse_realtime_m", to_json(c.ate_realtime)},
+                               {"realtime_processed_ratio", to_json(c.processed)},
+                               {"realtime_latency_ms", to_json(c.latency_ms)},
+                               {"realtime_detector_rate_hz", to_json(c.detector_rate_hz)},
+                               {"realtime_fps", to_json(c.fps_realtime)},
+                               {"stages_ms_realtime", stages_json(c.stages_ms_realtime)},
                                {"runs", runs}});
     }
     j["sequences"].push_back(js);

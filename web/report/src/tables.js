@@ -12,6 +12,10 @@ const METRICS = [
   { key: 'tracked_ratio', title: 'Tracked', sub: '% of frames', unit: 'ratio', better: 'high' },
   { key: 'fps', title: 'FPS', sub: 'threaded', unit: 'fps', better: 'high' },
   { key: 'tracking_ms', title: 'Tracking', sub: 'ms/frame, threaded', unit: 'ms', better: 'low' },
+  // Real-time runs (bench --modes ...,realtime): shown only when some result has them.
+  { key: 'ate_rmse_realtime_m', title: 'ATE real time', sub: 'RMSE, m, frames processed', unit: 'm', better: 'low', optional: true },
+  { key: 'realtime_processed_ratio', title: 'Processed', sub: '% of frames, real time', unit: 'ratio', better: 'high', optional: true },
+  { key: 'realtime_latency_ms', title: 'Latency', sub: 'ms, frame to pose, real time', unit: 'ms', better: 'low', optional: true },
 ];
 
 function median(stat) {
@@ -154,10 +158,11 @@ export function overview(data, ctx) {
 
 export function ablationTable(seq, ctx) {
   const results = (seq.results || []).filter(Boolean);
-  const best = new Map(METRICS.map((m) => [m.key, bestConfigs(results, m)]));
+  const shown = METRICS.filter((m) => !m.optional || results.some((r) => median(r[m.key]) !== null));
+  const best = new Map(shown.map((m) => [m.key, bestConfigs(results, m)]));
   const head = h('tr', null,
     h('th', { scope: 'col' }, 'Config'),
-    METRICS.map((m) => h('th', { scope: 'col', class: 'num' }, m.title, h('span', { class: 'sub' }, m.sub))));
+    shown.map((m) => h('th', { scope: 'col', class: 'num' }, m.title, h('span', { class: 'sub' }, m.sub))));
   const rows = results.map((res) => {
     const counts = runCounts(res);
     const nameCell = h('th', { scope: 'row' }, configCell(ctx, res.config),
@@ -165,9 +170,9 @@ export function ablationTable(seq, ctx) {
         `${counts.failed} failed`) : null);
     if (res.skipped) {
       return h('tr', { class: 'skipped', dataset: { config: res.config } }, nameCell,
-        h('td', { colspan: METRICS.length }, h('span', { class: 'badge' }, 'skipped'), ' ', String(res.skipped)));
+        h('td', { colspan: shown.length }, h('span', { class: 'badge' }, 'skipped'), ' ', String(res.skipped)));
     }
-    return h('tr', { dataset: { config: res.config } }, nameCell, METRICS.map((m) => {
+    return h('tr', { dataset: { config: res.config } }, nameCell, shown.map((m) => {
       const stat = res[m.key];
       const r = range(stat, m.unit);
       const isBest = best.get(m.key).has(res.config);

@@ -54,11 +54,12 @@ const std::vector<Config>& all_configs();
 /// for an unknown name.
 std::vector<Config> select_configs(const std::vector<std::string>& names);
 
-enum class Mode { kSequential, kThreaded };
+/// kRealtime: threaded, with frames delivered at their timestamps (`run --realtime`).
+enum class Mode { kSequential, kThreaded, kRealtime };
 const char* to_string(Mode mode);
 
-/// Parses "sequential" / "threaded" (all, in that order, when `names` is empty); throws
-/// InputError for anything else.
+/// Parses "sequential" / "threaded" / "realtime" (sequential and threaded, in that order, when
+/// `names` is empty); throws InputError for anything else.
 std::vector<Mode> select_modes(const std::vector<std::string>& names);
 
 /// Where a sequence's boxes come from for the configurations that need them.

@@ -33,6 +33,9 @@ struct RunRecord {
   /// detection per keyframe and of the relocalisation database query, relocalisations.
   std::optional<double> keyframes, loops_verified, loops_accepted, loop_detection_ms,
       relocalisations, relocalisation_query_ms;
+  /// Real-time runs: share of the camera's frames processed, latency median (ms), and the
+  /// detector's forward passes per second (any threaded run with a model).
+  std::optional<double> processed_ratio, latency_ms, detector_rate_hz;
   /// Median ms of each tracking stage, in pipeline order (image_load first).
   std::vector<std::pair<std::string, double>> stages_ms;
 };
@@ -65,6 +68,10 @@ struct ConfigResult {
   std::optional<Spread> keyframes, loops_verified, loops_accepted, loop_detection_ms,
       relocalisations, relocalisation_query_ms;
   std::vector<std::pair<std::string, double>> stages_ms;  ///< median over the speed runs
+  /// Real-time runs (`--realtime`), when there are any: ATE on the frames processed, share of
+  /// frames processed, latency median, detector rate, frame rate and per-stage medians.
+  std::optional<Spread> ate_realtime, processed, latency_ms, detector_rate_hz, fps_realtime;
+  std::vector<std::pair<std::string, double>> stages_ms_realtime;
 };
 
 /// Fills the figures of `result` from its runs.
