@@ -220,7 +220,8 @@ int main(int argc, char** argv) {
       ->delimiter(',');
   bench_cmd
       ->add_option("--modes", bench.modes,
-                   "Comma-separated subset of sequential,threaded,realtime (default: sequential,threaded; realtime: threaded with --realtime)")
+                   "Comma-separated subset of sequential,threaded,realtime (default: "
+                   "sequential,threaded; realtime: threaded with --realtime)")
       ->delimiter(',');
   bench_cmd
       ->add_option("--sequences", bench.sequences,

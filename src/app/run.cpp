@@ -103,7 +103,8 @@ std::unique_ptr<slam::DetectionSource> make_detection_source(const RunRequest& r
     // A frame that waits for its own boxes must be given to the detector.
     const bool waits = request.wait_for_detections || system.sequential;
     return std::make_unique<slam::ModelDetectionSource>(
-        perception::Detector(*request.model, options), waits ? 1 : system.detection_interval);
+        perception::Detector(*request.model, options), waits ? 1 : system.detection_interval,
+        waits ? 0 : system.detector_niceness);
   }
   return nullptr;
 }
@@ -480,10 +481,10 @@ nlohmann::json run_frames(const RunRequest& request, const io::RgbdSequence& seq
     const io::FrameEntry& entry = plan.frames[k];
     const io::RgbdImages raw = io::load_rgbd(entry, factor);
     if (raw.rgb.cols != width || raw.rgb.rows != height)
-      throw InputError(file_error(entry.rgb_path, "image is " + std::to_string(raw.rgb.cols) + "x" +
-                                                      std::to_string(raw.rgb.rows) +
-                                                      " but the camera is " + std::to_string(width) +
-                                                      "x" + std::to_string(height)));
+      throw InputError(
+          file_error(entry.rgb_path, "image is " + std::to_string(raw.rgb.cols) + "x" +
+                                         std::to_string(raw.rgb.rows) + " but the camera is " +
+                                         std::to_string(width) + "x" + std::to_string(height)));
     return system.prepare(raw.rgb, raw.depth);
   };
   std::vector<double> stamps;
@@ -600,8 +601,8 @@ nlohmann::json run_frames(const RunRequest& request, const io::RgbdSequence& seq
     // A checkpoint every few seconds: what a kill would leave is a clearly partial run.
     if (checkpoint_watch.elapsed_ms() > 2000.0 && offered < total) {
       io::write_tum_trajectory((out / "trajectory_online.txt").string(), system.online_trajectory(),
-                               "partial: the run was at frame " + std::to_string(offered) +
-                                   " of " + std::to_string(total) + " (see status.json)");
+                               "partial: the run was at frame " + std::to_string(offered) + " of " +
+                                   std::to_string(total) + " (see status.json)");
       status.running(offered);
       checkpoint_watch.restart();
     }

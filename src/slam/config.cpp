@@ -46,6 +46,7 @@ std::vector<Field> mcslam_fields(PinholeCamera& c, SystemOptions& o) {
       {"orb.scale_factor", &o.orb.scale_factor},
       {"orb.fast_threshold", &o.orb.fast_threshold},
       {"orb.min_fast_threshold", &o.orb.min_fast_threshold},
+      {"lines.detector", &o.lines.detector},
       {"lines.min_length", &o.lines.min_length},
       {"lines.max_lines", &o.lines.max_lines},
       {"lines.detection_scale", &o.lines.detection_scale},
@@ -173,6 +174,8 @@ std::vector<Field> mcslam_fields(PinholeCamera& c, SystemOptions& o) {
       {"loop.full_ba_iterations", &o.place.loop.full_ba_iterations},
       {"system.sequential", &o.sequential},
       {"system.detection_interval", &o.detection_interval},
+      {"system.background_niceness", &o.background_niceness},
+      {"system.detector_niceness", &o.detector_niceness},
   };
 }
 

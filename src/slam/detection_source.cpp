@@ -3,6 +3,7 @@
 #include <filesystem>
 #include <sstream>
 
+#include "mcslam/core/thread_priority.hpp"
 #include "mcslam/core/timing.hpp"
 
 namespace mcslam::slam {
@@ -21,9 +22,13 @@ std::string FileDetectionSource::describe() const {
   return "detections file " + path_ + " (" + std::to_string(file_.frames.size()) + " frames)";
 }
 
-ModelDetectionSource::ModelDetectionSource(perception::Detector detector, int interval)
+ModelDetectionSource::ModelDetectionSource(perception::Detector detector, int interval,
+                                           int niceness)
     : detector_(std::move(detector)), interval_(std::max(1, interval)) {
-  worker_ = std::thread([this] { run(); });
+  worker_ = std::thread([this, niceness] {
+    lower_current_thread_priority(niceness);  // best effort
+    run();
+  });
 }
 
 ModelDetectionSource::~ModelDetectionSource() {

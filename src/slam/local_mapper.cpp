@@ -7,6 +7,7 @@
 #include <unordered_set>
 
 #include "map_adjustment.hpp"
+#include "mcslam/core/thread_priority.hpp"
 #include "mcslam/features/lines.hpp"
 #include "mcslam/optim/bundle_adjustment.hpp"
 #include "measurement.hpp"
@@ -107,11 +108,14 @@ void LocalMapper::run_task(const std::function<void()>& task) {
   done_cv.wait(wait, [&] { return done; });
 }
 
-void LocalMapper::start() {
+void LocalMapper::start(int niceness) {
   std::lock_guard<std::mutex> guard(queue_mutex_);
   if (thread_.joinable()) return;
   stop_ = false;
-  thread_ = std::thread([this] { run(); });
+  thread_ = std::thread([this, niceness] {
+    lower_current_thread_priority(niceness);  // best effort: the mapper runs either way
+    run();
+  });
 }
 
 void LocalMapper::enqueue(KeyFrameRequest request) {

@@ -8,6 +8,7 @@
 #include <unordered_set>
 
 #include "map_adjustment.hpp"
+#include "mcslam/core/thread_priority.hpp"
 #include "mcslam/optim/pose_optimizer.hpp"
 #include "mcslam/place/matching.hpp"
 #include "mcslam/slam/local_mapper.hpp"
@@ -57,11 +58,14 @@ LoopCloser::LoopCloser(const PinholeCamera& camera, const LoopOptions& options,
 
 LoopCloser::~LoopCloser() { finish(); }
 
-void LoopCloser::start() {
+void LoopCloser::start(int niceness) {
   std::lock_guard<std::mutex> guard(queue_mutex_);
   if (thread_.joinable()) return;
   stop_ = false;
-  thread_ = std::thread([this] { run(); });
+  thread_ = std::thread([this, niceness] {
+    lower_current_thread_priority(niceness);  // best effort
+    run();
+  });
 }
 
 void LoopCloser::enqueue(map::KeyFrameId keyframe) {

@@ -70,6 +70,10 @@ std::optional<std::string> SystemOptions::check() const {
     return "features.points, features.lines and features.planes are all off";
   if (detection_interval < 1 || detection_interval > 30)
     return "system.detection_interval must be in [1, 30] (frames)";
+  if (background_niceness < 0 || background_niceness > 19)
+    return "system.background_niceness must be in [0, 19]";
+  if (detector_niceness < 0 || detector_niceness > 19)
+    return "system.detector_niceness must be in [0, 19]";
   if (auto e = orb.check()) return e;
   if (auto e = lines.check()) return e;
   if (auto e = planes.check()) return e;

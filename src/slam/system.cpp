@@ -42,10 +42,10 @@ System::System(const PinholeCamera& camera, const SystemOptions& options,
       mapper_->set_keyframe_listener([closer](map::KeyFrameId id) { closer->process(id); });
     } else {
       mapper_->set_keyframe_listener([closer](map::KeyFrameId id) { closer->enqueue(id); });
-      loop_closer_->start();
+      loop_closer_->start(options_.background_niceness);
     }
   }
-  if (!options_.sequential) mapper_->start();
+  if (!options_.sequential) mapper_->start(options_.background_niceness);
 }
 
 System::~System() { finish(); }
@@ -121,8 +121,8 @@ FrameResult System::process(const cv::Mat& rgb, const cv::Mat& depth, double tim
   const double undistort_ms = images.prepare_ms;
   images.prepare_ms = -1.0;  // ran inline: listed as `undistort` below
   FrameResult result = process(images, timestamp, depth_timestamp);
-  if (images.problem.empty()) result.times.stages.insert(result.times.stages.begin(),
-                                                        {"undistort", undistort_ms});
+  if (images.problem.empty())
+    result.times.stages.insert(result.times.stages.begin(), {"undistort", undistort_ms});
   return result;
 }
 

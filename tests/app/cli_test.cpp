@@ -252,9 +252,9 @@ TEST(CliRun, RealTimeRunAccountsForEveryFrame) {
   EXPECT_TRUE(summary["stages"].contains("prepare"));
   EXPECT_FALSE(summary["stages"].contains("undistort"));
   // Together with --repeat it is refused, with one message.
-  const CliResult both = run_cli("run " + quote(main_sequence().string()) + " --output " +
-                                 quote((root() / "out_rt_repeat").string()) +
-                                 " --realtime --repeat 2 -q");
+  const CliResult both =
+      run_cli("run " + quote(main_sequence().string()) + " --output " +
+              quote((root() / "out_rt_repeat").string()) + " --realtime --repeat 2 -q");
   EXPECT_EQ(both.exit_code, 1) << both;
   EXPECT_NE(both.err.find("--realtime"), std::string::npos) << both;
 }

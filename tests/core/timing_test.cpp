@@ -2,6 +2,11 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <thread>
+
+#include "mcslam/core/thread_priority.hpp"
+
 namespace mcslam {
 namespace {
 
@@ -29,3 +34,25 @@ TEST(StageTimes, Total) {
 
 }  // namespace
 }  // namespace mcslam
+
+// --- thread priority -----------------------------------------------------------------------------
+
+TEST(ThreadPriority, LowersOnlyTheCallingThread) {
+  const int before = mcslam::current_thread_niceness();
+  int inside = before, after_in_thread = before;
+  bool lowered = false;
+  std::thread t([&] {
+    const int start = mcslam::current_thread_niceness();
+    lowered = mcslam::lower_current_thread_priority(3);
+    after_in_thread = mcslam::current_thread_niceness();
+    inside = start;
+  });
+  t.join();
+  EXPECT_EQ(inside, before);  // a new thread starts with its creator's nice value
+  if (lowered) {
+    EXPECT_EQ(after_in_thread, std::min(before + 3, 19));
+  }
+  EXPECT_EQ(mcslam::current_thread_niceness(), before) << "the caller's own priority changed";
+  EXPECT_TRUE(mcslam::lower_current_thread_priority(0));
+  EXPECT_EQ(mcslam::current_thread_niceness(), before);
+}

@@ -165,6 +165,7 @@ TEST(LineOptions, CheckNamesTheBadField) {
   add("min_length", [](LineOptions& o) { o.min_length = -1.0; });
   add("min_length", [](LineOptions& o) { o.min_length = std::nan(""); });
   add("max_lines", [](LineOptions& o) { o.max_lines = 0; });
+  add("detector", [](LineOptions& o) { o.detector = "hough"; });
   add("detection_scale", [](LineOptions& o) { o.detection_scale = 0.0; });
   add("detection_scale", [](LineOptions& o) { o.detection_scale = 1.5; });
   add("depth_samples", [](LineOptions& o) { o.depth_samples = 2; });
@@ -262,32 +263,38 @@ TEST(LineExtractor, RectangleEdgesAtSubpixelPositions) {
   // boundaries x = 99.5, x = 299.5, y = 119.5, y = 299.5 (pixel-centre coordinates).
   cv::Mat gray(480, 640, CV_8UC1, cv::Scalar(60));
   gray(cv::Rect(100, 120, 200, 180)).setTo(180);
-  for (double scale : {0.4, 0.5, 1.0}) {
-    LineOptions options;
-    options.detection_scale = scale;
-    const LineExtractor extractor(options);
-    const std::vector<LineFeature> lines = extractor.extract(gray);
-    ASSERT_GE(lines.size(), 4u) << scale;
-    int vertical = 0;
-    int horizontal = 0;
-    for (const LineFeature& line : lines) {
-      const Eigen::Vector2f d = line.end - line.start;
-      if (std::abs(d.x()) < 0.02f * line.length()) {
-        ++vertical;
-        const float x = 0.5f * (line.start.x() + line.end.x());
-        EXPECT_LT(std::min(std::abs(x - 99.5f), std::abs(x - 299.5f)), 0.5f) << scale;
-      } else if (std::abs(d.y()) < 0.02f * line.length()) {
-        ++horizontal;
-        const float y = 0.5f * (line.start.y() + line.end.y());
-        EXPECT_LT(std::min(std::abs(y - 119.5f), std::abs(y - 299.5f)), 0.5f) << scale;
-      } else {
-        ADD_FAILURE() << "oblique segment at scale " << scale;
+  for (const char* detector : {"lsd", "fld"})
+    for (double scale : {0.4, 0.5, 1.0}) {
+      SCOPED_TRACE(detector);
+      LineOptions options;
+      options.detector = detector;
+      options.detection_scale = scale;
+      const LineExtractor extractor(options);
+      const std::vector<LineFeature> lines = extractor.extract(gray);
+      ASSERT_GE(lines.size(), 4u) << scale;
+      // LSD fits its segments to the gradient field (sub-pixel); FLD to Canny's edge pixels, which
+      // lie on one side of a step edge: half a pixel of the detection image off.
+      const float tolerance = std::string(detector) == "lsd" ? 0.5f : 0.5f / scale + 0.05f;
+      int vertical = 0;
+      int horizontal = 0;
+      for (const LineFeature& line : lines) {
+        const Eigen::Vector2f d = line.end - line.start;
+        if (std::abs(d.x()) < 0.02f * line.length()) {
+          ++vertical;
+          const float x = 0.5f * (line.start.x() + line.end.x());
+          EXPECT_LT(std::min(std::abs(x - 99.5f), std::abs(x - 299.5f)), tolerance) << scale;
+        } else if (std::abs(d.y()) < 0.02f * line.length()) {
+          ++horizontal;
+          const float y = 0.5f * (line.start.y() + line.end.y());
+          EXPECT_LT(std::min(std::abs(y - 119.5f), std::abs(y - 299.5f)), tolerance) << scale;
+        } else {
+          ADD_FAILURE() << "oblique segment at scale " << scale;
+        }
+        EXPECT_GT(line.length(), 150.0f);
       }
-      EXPECT_GT(line.length(), 150.0f);
+      EXPECT_GE(vertical, 2);
+      EXPECT_GE(horizontal, 2);
     }
-    EXPECT_GE(vertical, 2);
-    EXPECT_GE(horizontal, 2);
-  }
 }
 
 TEST(LineExtractor, LongestFirstWithinLimitsAndDeterministic) {
@@ -686,9 +693,9 @@ TEST(MatchLines, UniqueObservedAndDescriptorLimit) {
 // Lines of one rendered frame, lifted to 3D and projected into a later frame with the true
 // motion, find their own segments there.
 void round_trip(const synth::SyntheticSequence& seq, std::initializer_list<int> views, int step,
-                double min_matched, double min_correct) {
+                double min_matched, double min_correct, const LineOptions& options = {}) {
   const PinholeCamera camera = seq.camera();
-  const LineExtractor extractor{LineOptions{}};
+  const LineExtractor extractor{options};
   int total_matches = 0;
   int total_correct = 0;
   int total_predicted = 0;
@@ -738,6 +745,13 @@ void round_trip(const synth::SyntheticSequence& seq, std::initializer_list<int> 
 
 TEST(MatchLines, RoundTripBetweenRenderedFrames) {
   round_trip(sequence(), {0, 120, 200}, 3, 0.7, 0.9);
+}
+
+TEST(MatchLines, RoundTripWithTheFastLineDetector) {
+  // The same criteria as LSD's: FLD's segments are as matchable between views, and as correct.
+  LineOptions fld;
+  fld.detector = "fld";
+  round_trip(sequence(), {0, 120, 200}, 3, 0.7, 0.9, fld);
 }
 
 TEST(MatchLines, RoundTripRichTexture) {

@@ -18,6 +18,10 @@ namespace mcslam::features {
 using LineDescriptor = OrbDescriptor;
 
 struct LineOptions {
+  /// The segment detector: "lsd" (OpenCV's Line Segment Detector, the default) or "fld" (the
+  /// Fast Line Detector of OpenCV contrib's ximgproc: Canny edges split into straight runs).
+  /// Both run on the image scaled by detection_scale; compared in README ("Speed").
+  std::string detector = "lsd";
   /// Segments shorter than this (pixels, full resolution) are dropped.
   double min_length = 25.0;
   /// At most this many segments are kept, longest first.

@@ -63,8 +63,9 @@ class FileDetectionSource final : public DetectionSource {
 class ModelDetectionSource final : public DetectionSource {
  public:
   /// `interval`: a frame is given to the detector only when at least this many frames have
-  /// passed since the last one it was given (1: whenever it is free).
-  explicit ModelDetectionSource(perception::Detector detector, int interval = 1);
+  /// passed since the last one it was given (1: whenever it is free). `niceness` is added to
+  /// the worker thread's nice value (SystemOptions::detector_niceness).
+  explicit ModelDetectionSource(perception::Detector detector, int interval = 1, int niceness = 0);
   ~ModelDetectionSource() override;
   ModelDetectionSource(const ModelDetectionSource&) = delete;
   ModelDetectionSource& operator=(const ModelDetectionSource&) = delete;

@@ -53,8 +53,9 @@ class LocalMapper {
   /// Processes one keyframe inline and records its stage times in `times`.
   void process(KeyFrameRequest request, StageTimes* times = nullptr);
 
-  /// Threaded mode.
-  void start();
+  /// Threaded mode; the thread's nice value is raised by `niceness` (see
+  /// SystemOptions::background_niceness).
+  void start(int niceness = 0);
   void enqueue(KeyFrameRequest request);
   /// Waits until the queue is empty and the thread has stopped.
   void finish();

@@ -94,7 +94,8 @@ class LoopCloser {
   /// Inline: detection, verification, correction and the full bundle adjustment.
   void process(map::KeyFrameId keyframe);
 
-  void start();
+  /// Starts the thread, its nice value raised by `niceness` (SystemOptions::background_niceness).
+  void start(int niceness = 0);
   void enqueue(map::KeyFrameId keyframe);
   /// Processes what is queued (a running full bundle adjustment is stopped), then stops.
   void finish();

@@ -187,6 +187,16 @@ struct SystemOptions {
   /// next detection on Bonn crowd, 0.85 at 1) while the forward pass, a quarter of the CPU on two
   /// cores, runs half as often. 1: whenever the detector is free.
   int detection_interval = 2;
+  /// Nice value added to the threads without a per-frame deadline (local mapping, loop closing
+  /// and its full bundle adjustment) in threaded mode. On a machine with fewer cores than busy
+  /// threads they then yield to the frame's own threads (extraction and tracking), whose delay
+  /// is the frame's latency, while a keyframe's mapping may take a few frames longer: measured
+  /// in README ("Speed"). 0: the same priority as the frame; at most 19.
+  int background_niceness = 5;
+  /// The same for the detector's thread (a model in threaded mode): it then runs at the rate
+  /// the CPU leaves it, and boxes are carried between its detections (dynamics.propagate_boxes).
+  /// OpenCV's own worker threads, which run most of a forward pass, keep their priority.
+  int detector_niceness = 0;
 
   std::optional<std::string> check() const;
 };

@@ -300,14 +300,14 @@ std::string markdown(const BenchMeta& meta, const std::vector<SequenceResult>& s
   std::ostringstream md;
   md << "# mcslam bench\n\n";
   md << meta.created_utc << " · `" << meta.command << "` · " << meta.hostname << ", " << meta.cpus
-     << " CPUs · " << meta.runs_per_mode << " run(s) per mode ("
-     << [&] {
-          std::string names;
-          for (std::size_t i = 0; i < meta.modes.size(); ++i)
-            names += (i == 0 ? "" : (i + 1 == meta.modes.size() ? " and " : ", ")) +
-                     std::string(to_string(meta.modes[i]));
-          return names;
-        }()
+     << " CPUs · " << meta.runs_per_mode << " run(s) per mode (" <<
+      [&] {
+        std::string names;
+        for (std::size_t i = 0; i < meta.modes.size(); ++i)
+          names += (i == 0 ? "" : (i + 1 == meta.modes.size() ? " and " : ", ")) +
+                   std::string(to_string(meta.modes[i]));
+        return names;
+      }()
      << ") · wall time " << fixed(meta.wall_time_s / 60.0, 1) << " min\n\n";
   const bool sequential = std::count(meta.modes.begin(), meta.modes.end(), Mode::kSequential);
   const bool threaded = std::count(meta.modes.begin(), meta.modes.end(), Mode::kThreaded);
@@ -393,8 +393,7 @@ std::string markdown(const BenchMeta& meta, const std::vector<SequenceResult>& s
       std::vector<std::string> stages;
       for (const ConfigResult* c : by_stages)
         for (const auto& [name, ms] : c->*field)
-          if (std::find(stages.begin(), stages.end(), name) == stages.end())
-            stages.push_back(name);
+          if (std::find(stages.begin(), stages.end(), name) == stages.end()) stages.push_back(name);
       if (stages.empty()) return;
       md << "\nPer-stage median (ms), " << runs << " runs:\n\n| configuration |";
       for (const auto& name : stages) md << ' ' << name << " |";
@@ -407,8 +406,7 @@ std::string markdown(const BenchMeta& meta, const std::vector<SequenceResult>& s
         for (const auto& name : stages) {
           const auto it = std::find_if((c.*field).begin(), (c.*field).end(),
                                        [&](const auto& p) { return p.first == name; });
-          md << ' ' << (it == (c.*field).end() ? std::string("–") : fixed(it->second, 1))
-             << " |";
+          md << ' ' << (it == (c.*field).end() ? std::string("–") : fixed(it->second, 1)) << " |";
         }
         md << "\n";
       }
