@@ -36,8 +36,8 @@ SystemOptions options(bool loops) {
   o.sequential = true;
   o.orb.num_features = 500;
   o.tracker.min_initial_points = 200;
-  // Tracking that does not reach back to old keyframes by position (as ORB-SLAM2's), so that the
-  // revisit is left to loop closing.
+  // Tracking that does not reach back to old keyframes by position (as ORB-SLAM2's, and the
+  // default), so that the revisit is left to loop closing.
   o.tracker.spatial_keyframes = 0;
   o.place.loop.enabled = loops;
   // The map as it stands after the run, without the bundle adjustment of the whole map that
