@@ -291,8 +291,10 @@ int main(int argc, char** argv) {
   synth_cmd->add_option("--room-scale", synth_options.room_scale,
                         "Scale of the room's floor plan, 1-4 (default 1: 6 x 5 m); at 2 the walls "
                         "are beyond the depth range of --depth-noise");
-  synth_cmd->add_option("--readout-time", synth_options.readout_time,
-                        "Rolling-shutter readout time in seconds (0 = global shutter)");
+  synth_cmd->add_option(
+      "--readout-time", synth_options.readout_time,
+      "Rolling-shutter readout time in seconds (0 = global shutter; negative: rows "
+      "read bottom to top)");
   synth_cmd->add_option("--width", synth_options.width, "Image width");
   synth_cmd->add_option("--height", synth_options.height, "Image height");
   auto& dyn = synth_options.dynamic;

@@ -66,8 +66,11 @@ std::string camera_yaml(const PinholeCamera& c) {
     << "\n  width: " << c.width << "\n  height: " << c.height << "\n  k1: " << c.distortion[0]
     << "\n  k2: " << c.distortion[1] << "\n  p1: " << c.distortion[2]
     << "\n  p2: " << c.distortion[3] << "\n  k3: " << c.distortion[4]
-    << "\n  depth_factor: " << c.depth_factor << "\n  bf: " << c.bf
-    << "\n  readout_time: " << c.readout_time << "\n";
+    << "\n  depth_factor: " << c.depth_factor << "\n  bf: " << c.bf << "\n  readout_time: ";
+  if (c.readout_auto)
+    s << "auto\n";
+  else
+    s << c.readout_time << "\n";
   return s.str();
 }
 

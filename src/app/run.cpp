@@ -245,6 +245,21 @@ std::unique_ptr<map::Map> load_compatible_session(const std::string& path,
 }
 
 /// Loops for summary.json: counts, every verified candidate with its figures, timings.
+/// The rolling-shutter readout time used and, when estimated, how (summary.json "readout").
+nlohmann::json readout_json(const slam::ReadoutReport& r) {
+  nlohmann::json j = {{"mode", r.automatic ? "auto" : "fixed"}, {"readout_time_s", r.readout_time}};
+  if (!r.automatic) return j;
+  j["estimate_s"] = r.estimate;
+  j["std_s"] = r.std;
+  j["frames_used"] = r.frames_used;
+  j["frames_rejected"] = r.frames_rejected;
+  j["epochs"] = r.epochs;
+  j["confident"] = r.confident;
+  j["confident_at_timestamp"] = r.confident_at;
+  j["frames_used_when_confident"] = r.frames_used_when_confident;
+  return j;
+}
+
 nlohmann::json loops_json(const slam::LoopStatistics& stats, const slam::PlaceOptions& place) {
   nlohmann::json events = nlohmann::json::array();
   int accepted = 0;
@@ -649,6 +664,9 @@ nlohmann::json run_frames(const RunRequest& request, const io::RgbdSequence& seq
   summary["state"] = interrupted ? "interrupted" : "complete";
   summary["sequence"] = fs::path(request.sequence_dir).lexically_normal().string();
   summary["camera_source"] = config.camera_source;
+  summary["readout"] = readout_json(system.readout_report());
+  io::write_file_atomic((out / "config.yaml").string(),
+                        slam::to_yaml(config, system.readout_report()));
   summary["sequential"] = config.options.sequential;
   summary["frames"] = processed;
   summary["tracked_frames"] = tracked;

@@ -13,8 +13,8 @@ std::optional<std::string> PinholeCamera::check() const {
     return "principal point lies outside the image";
   if (!positive(depth_factor)) return "depth factor must be positive";
   if (!positive(bf)) return "virtual baseline bf must be positive";
-  if (!std::isfinite(readout_time) || readout_time < 0.0 || readout_time > 0.1)
-    return "rolling-shutter readout_time must be in [0, 0.1] s";
+  if (!std::isfinite(readout_time) || std::abs(readout_time) > 0.1)
+    return "rolling-shutter readout_time must be in [-0.1, 0.1] s";
   for (double d : distortion)
     if (!std::isfinite(d)) return "distortion coefficients must be finite";
   return std::nullopt;

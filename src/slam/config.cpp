@@ -11,8 +11,15 @@
 namespace mcslam::slam {
 namespace {
 
+/// The readout time: a number of seconds, or `auto` (estimated while running).
+struct ReadoutRef {
+  double* time;
+  bool* automatic;
+};
+
 /// A list of names is written as one comma-separated scalar ("chair, dining table").
-using FieldRef = std::variant<double*, int*, bool*, std::string*, std::vector<std::string>*>;
+using FieldRef =
+    std::variant<double*, int*, bool*, std::string*, std::vector<std::string>*, ReadoutRef>;
 struct Field {
   std::string key;
   FieldRef value;
@@ -37,7 +44,7 @@ std::vector<Field> mcslam_fields(PinholeCamera& c, SystemOptions& o) {
       {"camera.k3", &c.distortion[4]},
       {"camera.depth_factor", &c.depth_factor},
       {"camera.bf", &c.bf},
-      {"camera.readout_time", &c.readout_time},
+      {"camera.readout_time", ReadoutRef{&c.readout_time, &c.readout_auto}},
       {"features.points", &o.use.points},
       {"features.lines", &o.use.lines},
       {"features.planes", &o.use.planes},
@@ -172,6 +179,14 @@ std::vector<Field> mcslam_fields(PinholeCamera& c, SystemOptions& o) {
       {"loop.pose_graph.sigma_translation", &o.place.loop.pose_graph.sigma_translation},
       {"loop.pose_graph.sigma_rotation", &o.place.loop.pose_graph.sigma_rotation},
       {"loop.full_ba_iterations", &o.place.loop.full_ba_iterations},
+      {"readout.min_angular_velocity", &o.readout.min_angular_velocity},
+      {"readout.min_points", &o.readout.min_points},
+      {"readout.min_frames", &o.readout.min_frames},
+      {"readout.max_std", &o.readout.max_std},
+      {"readout.min_significance", &o.readout.min_significance},
+      {"readout.huber", &o.readout.huber},
+      {"readout.max_readout", &o.readout.max_readout},
+      {"readout.anchor_age", &o.readout.anchor_age},
       {"system.sequential", &o.sequential},
       {"system.detection_interval", &o.detection_interval},
       {"system.background_niceness", &o.background_niceness},
@@ -210,11 +225,26 @@ std::string join_names(const std::vector<std::string>& names) {
   return out;
 }
 
+void read_readout(io::ConfigFile& file, const std::string& key, ReadoutRef value) {
+  std::string text;
+  if (!file.has(key)) return;
+  const bool is_auto = file.read(key, text) && text == "auto";
+  if (is_auto) {
+    // The value so far (a preset's, or 0) stays as the starting value of the estimate.
+    *value.automatic = true;
+    return;
+  }
+  file.read(key, *value.time);  // a number (throws otherwise)
+  *value.automatic = false;
+}
+
 void read_fields(io::ConfigFile& file, const std::vector<Field>& fields) {
   for (const Field& f : fields)
     std::visit(
-        [&](auto* value) {
-          if constexpr (std::is_same_v<decltype(value), std::vector<std::string>*>) {
+        [&](auto value) {
+          if constexpr (std::is_same_v<decltype(value), ReadoutRef>) {
+            read_readout(file, f.key, value);
+          } else if constexpr (std::is_same_v<decltype(value), std::vector<std::string>*>) {
             std::string list;
             if (!file.read(f.key, list)) return;
             value->clear();
@@ -293,7 +323,9 @@ RunConfig resolve_run_config(const std::string& sequence_dir,
   return config;
 }
 
-std::string to_yaml(const RunConfig& config) {
+std::string to_yaml(const RunConfig& config) { return to_yaml(config, ReadoutReport{}); }
+
+std::string to_yaml(const RunConfig& config, const ReadoutReport& readout) {
   RunConfig copy = config;  // the field table takes mutable references
   std::ostringstream s;
   s.precision(10);
@@ -311,8 +343,22 @@ std::string to_yaml(const RunConfig& config) {
     open.assign(parts.begin(), parts.end() - 1);
     s << std::string(2 * (parts.size() - 1), ' ') << parts.back() << ": ";
     std::visit(
-        [&](auto* value) {
-          if constexpr (std::is_same_v<decltype(value), bool*>)
+        [&](auto value) {
+          if constexpr (std::is_same_v<decltype(value), ReadoutRef>) {
+            if (*value.automatic) {
+              s << "auto";
+              if (readout.automatic) {
+                std::ostringstream note;
+                note.precision(3);
+                note << "  # used " << readout.readout_time * 1e3 << " ms; estimated "
+                     << readout.estimate * 1e3 << " +- " << readout.std * 1e3 << " ms from "
+                     << readout.frames_used << " frames, "
+                     << (readout.confident ? "confident" : "not confident");
+                s << note.str();
+              }
+            } else
+              s << *value.time;
+          } else if constexpr (std::is_same_v<decltype(value), bool*>)
             s << (*value ? "true" : "false");
           else if constexpr (std::is_same_v<decltype(value), std::vector<std::string>*>)
             s << join_names(*value);

@@ -11,7 +11,7 @@ namespace {
 constexpr double kDepthConsistency = 0.03;
 
 bool rolling(const FrameMotion& motion) {
-  return motion.readout_time > 0.0 && motion.angular_velocity.norm() > 0.0;
+  return motion.readout_time != 0.0 && motion.angular_velocity.norm() > 0.0;
 }
 }  // namespace
 

@@ -79,6 +79,7 @@ std::optional<std::string> SystemOptions::check() const {
   if (auto e = planes.check()) return e;
   if (auto e = tracker.check()) return e;
   if (auto e = place.check()) return e;
+  if (auto e = readout.check()) return e;
   return mapper.check();
 }
 

@@ -46,6 +46,15 @@ System::System(const PinholeCamera& camera, const SystemOptions& options,
     }
   }
   if (!options_.sequential) mapper_->start(options_.background_niceness);
+  if (camera_.readout_auto)
+    readout_ = std::make_unique<ReadoutEstimator>(camera_, options_.readout);
+}
+
+ReadoutReport System::readout_report() const {
+  if (readout_) return readout_->report();
+  ReadoutReport r;
+  r.readout_time = camera_.readout_time;
+  return r;
 }
 
 System::~System() { finish(); }
@@ -153,10 +162,13 @@ FrameResult System::process(const PreparedImages& images, double timestamp,
   if (options_.tracker.compensate_depth_time && depth_timestamp &&
       std::abs(*depth_timestamp - timestamp) > 1e-4)
     motion.T_rgb_depth = tracker_->predicted_motion(timestamp - *depth_timestamp);
-  if (camera_.readout_time > 0.0) {
-    motion.readout_time = camera_.readout_time;
+  // The readout in use: the fixed setting, or the estimate once it is confident (0 before).
+  const double readout = readout_ ? readout_->readout_time() : camera_.readout_time;
+  if (readout != 0.0) {
+    motion.readout_time = readout;
     motion.angular_velocity = tracker_->angular_velocity();
   }
+  result.readout_time = readout;
   Frame frame =
       builder_->build(result.frame_id, timestamp, gray, undistorted_depth, motion, &result.times);
   if (detections_) {
@@ -201,6 +213,26 @@ FrameResult System::process(const PreparedImages& images, double timestamp,
   result.stale_iou = outcome.objects.stale_iou;
   result.mover_regions = outcome.objects.mover_regions;
   result.mover_points = outcome.objects.mover_points;
+  if (readout_) {
+    if (outcome.state == TrackingState::kOk) {
+      ReadoutFrame observed;
+      observed.timestamp = timestamp;
+      observed.T_c_w = outcome.T_c_w;
+      observed.omega_used = motion.angular_velocity;
+      observed.readout_used = motion.readout_time;
+      const auto& points = frame.features->points;
+      const auto& pyramid = *frame.features->pyramid;
+      observed.points.reserve(outcome.point_inliers.size());
+      for (const auto& [i, landmark] : outcome.point_inliers)
+        if (points[i].has_depth())
+          observed.points.push_back(
+              {landmark, points[i].keypoint.uv.cast<double>(), points[i].depth,
+               pyramid.inv_sigma2[static_cast<std::size_t>(points[i].keypoint.level)]});
+      readout_->add(std::move(observed));
+    } else {
+      readout_->reset();
+    }
+  }
   if (outcome.state == TrackingState::kOk) {
     result.T_w_c = outcome.T_c_w.inverse();
     record.tracked = true;
@@ -271,6 +303,9 @@ std::vector<StageTimes> System::mapper_times() const { return mapper_->keyframe_
 void System::save_session(const std::string& path) const {
   map::SessionInfo info;
   info.camera = camera_;
+  // The map's keypoints were compensated with the estimated readout (a session stores a number).
+  if (readout_) info.camera.readout_time = readout_->readout_time();
+  info.camera.readout_auto = false;
   info.vocabulary_id = vocabulary_ ? vocabulary_->id() : 0;
   info.orb_levels = options_.orb.num_levels;
   info.orb_scale_factor = options_.orb.scale_factor;

@@ -236,6 +236,10 @@ TrackingOutcome Tracker::track(const Frame& frame, bool mapper_idle, std::size_t
   out.state = state_;
   out.T_c_w = T_c_w;
   out.reference = reference_;
+  for (std::size_t i = 0; i < assoc.points.size(); ++i)
+    if (assoc.points[i].active && !assoc.points[i].outlier &&
+        assoc.points[i].landmark != map::kNoId)
+      out.point_inliers.emplace_back(i, assoc.points[i].landmark);
   if (!localize_ && need_keyframe(frame, assoc, mapper_idle, mapper_queue)) {
     out.keyframe = make_keyframe(frame, assoc, T_c_w);
     out.reference = out.keyframe->id;

@@ -388,8 +388,8 @@ double Renderer::row_time(double t, int row, double readout_time) const {
 
 RenderedFrame Renderer::render(const std::function<SE3(double)>& T_w_c_at, double t,
                                double readout_time) const {
-  if (!std::isfinite(readout_time) || readout_time < 0.0)
-    throw InputError("Renderer::render: readout_time must be finite and >= 0");
+  if (!std::isfinite(readout_time))
+    throw InputError("Renderer::render: readout_time must be finite");
   if (readout_time == 0.0) return render(T_w_c_at(t), t);
   // One view per row (cheap next to the rays; serial, so T_w_c_at need not be thread-safe).
   std::vector<FrameSetup> setups;

@@ -95,8 +95,8 @@ std::optional<std::string> SynthOptions::check() const {
     return "the orbit path needs room_scale >= 2 (it goes 3.5 m from the centre)";
   if (!finite(rgb_noise_sigma) || rgb_noise_sigma < 0.0)
     return "rgb_noise_sigma must be finite and >= 0";
-  if (!finite(readout_time) || readout_time < 0.0 || readout_time > 0.1)
-    return "readout_time must be finite and in [0, 0.1] s";
+  if (!finite(readout_time) || std::abs(readout_time) > 0.1)
+    return "readout_time must be finite and in [-0.1, 0.1] s";
   // Checked even when disabled, so that a bad value is reported rather than silently ignored.
   using D = DynamicObjects;
   auto in = [&](double v, double lo, double hi) { return finite(v) && v >= lo && v <= hi; };

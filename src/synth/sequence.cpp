@@ -163,7 +163,7 @@ SyntheticSequence::SyntheticSequence(const SynthOptions& options)
 
 RenderedFrame SyntheticSequence::frame(int i) const {
   if (i < 0 || i >= size()) throw std::out_of_range("SyntheticSequence::frame: bad index");
-  if (options_.readout_time > 0.0) {
+  if (options_.readout_time != 0.0) {
     const SynthOptions& options = options_;
     return renderer_.render([&options](double t) { return path_pose_at(options, t); }, time(i),
                             options_.readout_time);
@@ -227,7 +227,7 @@ void write_sequence(const std::string& directory, const SynthOptions& options,
         << "  height: " << camera.height << "\n"
         << "  depth_factor: " << format_double(camera.depth_factor) << "\n"
         << "  bf: " << format_double(camera.bf) << "\n";
-    if (camera.readout_time > 0.0)
+    if (camera.readout_time != 0.0)
       out << "  readout_time: " << format_double(camera.readout_time) << "\n";
     close_output(out, path);
   }

@@ -307,7 +307,10 @@ TEST(Renderer, RollingShutterRowsSeeTheSceneFromTheirRowTimePose) {
               1e-12);
   EXPECT_NEAR(renderer.row_time(1.0, h - 1, kReadout), 1.0 + 0.5 * kReadout - 0.5 * kReadout / h,
               1e-12);
-  EXPECT_THROW(renderer.render(pose_at, 0.0, -0.01), InputError);
+  // A negative readout reads the rows bottom to top.
+  EXPECT_NEAR(renderer.row_time(1.0, 0, -kReadout), 1.0 + 0.5 * kReadout - 0.5 * kReadout / h,
+              1e-12);
+  EXPECT_THROW(renderer.render(pose_at, 0.0, std::nan("")), InputError);
 
   for (const double t : {1.5, 3.3}) {  // rotating at about 90 deg/s
     const RenderedFrame rolling = renderer.render(pose_at, t, kReadout);

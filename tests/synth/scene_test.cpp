@@ -68,7 +68,7 @@ TEST(SynthOptions, CheckNamesTheBadField) {
   o.rgb_noise_sigma = std::nan("");
   expect_rejected(o, "rgb_noise_sigma");
   o = {};
-  o.readout_time = -0.01;
+  o.readout_time = -0.2;
   expect_rejected(o, "readout_time");
   o.readout_time = 0.2;
   expect_rejected(o, "readout_time");
@@ -77,6 +77,8 @@ TEST(SynthOptions, CheckNamesTheBadField) {
   o.readout_time = 0.1;
   EXPECT_FALSE(o.check().has_value());
   EXPECT_EQ(o.camera().readout_time, 0.1);
+  o.readout_time = -0.1;  // rows read bottom to top
+  EXPECT_FALSE(o.check().has_value());
 }
 
 TEST(Scene, RoomAndObjectsAreConsistent) {

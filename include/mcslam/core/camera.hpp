@@ -24,8 +24,12 @@ struct PinholeCamera {
   /// depth z into a virtual right-image coordinate u_r = u - bf / z.
   double bf = 40.0;
   /// Rolling shutter: time (s) between the exposure of the first and the last image row; 0 for a
-  /// global shutter. Keypoints are corrected with the tracked angular velocity when > 0.
+  /// global shutter, negative when the rows are read bottom to top. Keypoints are corrected with
+  /// the tracked angular velocity when it is not 0.
   double readout_time = 0.0;
+  /// The readout time is unknown (setting `camera.readout_time: auto`): SLAM estimates it from
+  /// the images while running (slam::ReadoutEstimator) and readout_time is ignored.
+  bool readout_auto = false;
 
   /// An empty optional when the parameters are usable; otherwise what is wrong.
   std::optional<std::string> check() const;

@@ -31,5 +31,8 @@ RunConfig resolve_run_config(const std::string& sequence_dir,
 
 /// The effective configuration in mcslam's own YAML keys (it loads back with apply_config).
 std::string to_yaml(const RunConfig& config);
+/// The same, after a run: with `camera.readout_time: auto`, a comment on that line gives the
+/// readout time used and how it was estimated.
+std::string to_yaml(const RunConfig& config, const ReadoutReport& readout);
 
 }  // namespace mcslam::slam

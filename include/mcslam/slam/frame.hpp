@@ -41,8 +41,9 @@ struct FrameMotion {
   /// where the depth camera saw that point and moved to the colour capture time; depths that
   /// disagree along the way (depth discontinuities) are dropped.
   std::optional<SE3> T_rgb_depth;
-  /// Angular velocity (rad/s, camera frame) and rolling-shutter readout time (s, top to bottom
-  /// row): keypoints are moved to where they would be seen at the middle row's time.
+  /// Angular velocity (rad/s, camera frame) and rolling-shutter readout time (s; > 0: rows read
+  /// top to bottom, < 0: bottom to top): keypoints are moved to where they would be seen at the
+  /// middle row's time.
   Eigen::Vector3d angular_velocity = Eigen::Vector3d::Zero();
   double readout_time = 0.0;
 };

@@ -10,6 +10,7 @@
 #include "mcslam/optim/pose_graph.hpp"
 #include "mcslam/optim/pose_optimizer.hpp"
 #include "mcslam/slam/dynamics.hpp"
+#include "mcslam/slam/readout.hpp"
 
 namespace mcslam::slam {
 
@@ -179,6 +180,7 @@ struct SystemOptions {
   TrackerOptions tracker;
   MapperOptions mapper;
   PlaceOptions place;
+  ReadoutOptions readout;
   /// With a map made earlier (System's initial map): track against it without changing it (no
   /// keyframes, no mapping, no loop closing). Set by `mcslam run --localize`.
   bool localize = false;

@@ -18,6 +18,7 @@
 #include "mcslam/slam/detection_source.hpp"
 #include "mcslam/slam/loop_closer.hpp"
 #include "mcslam/slam/options.hpp"
+#include "mcslam/slam/readout.hpp"
 #include "mcslam/slam/tracker.hpp"
 
 namespace mcslam::io {
@@ -65,8 +66,9 @@ struct FrameResult {
   /// its frame, and of the same boxes only grown (-1: not measured this frame).
   double propagation_iou = -1.0;
   double stale_iou = -1.0;
-  int mover_regions = 0;  // moving regions found without a box
-  int mover_points = 0;   // features they took out
+  int mover_regions = 0;      // moving regions found without a box
+  int mover_points = 0;       // features they took out
+  double readout_time = 0.0;  // the rolling-shutter readout the keypoints were compensated with
 };
 
 /// A frame's images as the pipeline takes them, made by System::prepare (which may run on
@@ -140,6 +142,9 @@ class System {
   /// The vocabulary in use (null without one).
   const place::Vocabulary* vocabulary() const { return vocabulary_.get(); }
   const PinholeCamera& camera() const { return camera_; }
+  /// The rolling-shutter readout time in use and, with camera.readout_time: auto, how it was
+  /// estimated. Call from the thread that calls process().
+  ReadoutReport readout_report() const;
   const SystemOptions& options() const { return options_; }
 
  private:
@@ -161,6 +166,7 @@ class System {
   std::unique_ptr<LocalMapper> mapper_;
   std::unique_ptr<LoopCloser> loop_closer_;
   std::unique_ptr<DetectionSource> detections_;
+  std::unique_ptr<ReadoutEstimator> readout_;  // with camera.readout_auto
   bool wait_for_detections_ = true;
   std::vector<FrameRecord> records_;
   std::uint64_t next_frame_id_ = 0;

@@ -83,6 +83,9 @@ struct TrackingOutcome {
   std::optional<RelocalisationInfo> relocalisation;
   /// Object handling: boxes, decisions, feature labels (all static without detections).
   ObjectOutputs objects;
+  /// The final pose optimisation's inliers that are map points (state kOk): the frame's point
+  /// index and the landmark (for the readout-time estimate).
+  std::vector<std::pair<std::size_t, map::PointId>> point_inliers;
 };
 
 class Tracker {

@@ -65,12 +65,14 @@ class Renderer {
   /// t_r = row_time(t, r, readout_time); so camera.unproject({u, r}, depth) is the hit point in
   /// the camera frame T_w_c_at(t_r). Noise is seeded from t, as in render(T_w_c, t). With
   /// readout_time == 0 this is exactly render(T_w_c_at(t), t). T_w_c_at is called once per row
-  /// (serially). Throws InputError when readout_time is negative or not finite.
+  /// (serially); a negative readout_time reads the rows bottom to top. Throws InputError when
+  /// readout_time is not finite.
   RenderedFrame render(const std::function<SE3(double)>& T_w_c_at, double t,
                        double readout_time) const;
 
   /// Exposure time of image row `row` (its centre) in a frame whose middle is at time t, with
-  /// rows read top to bottom over readout_time seconds: t + (row + 0.5 - H/2) / H * readout_time.
+  /// rows read top to bottom over readout_time seconds (bottom to top when negative):
+  /// t + (row + 0.5 - H/2) / H * readout_time.
   double row_time(double t, int row, double readout_time) const;
 
   const Scene& scene() const { return scene_; }

@@ -60,12 +60,12 @@ struct SynthOptions {
   double room_scale = 1.0;
   /// Standard deviation of the per-frame Gaussian RGB noise, in grey levels (0 disables it).
   double rgb_noise_sigma = 2.0;
-  /// Rolling-shutter readout time in seconds (first to last row), in [0, 0.1]; 0 renders a global
-  /// shutter. When > 0, frame i's row r (colour and registered depth alike, as for a Kinect-like
-  /// sensor that reads both with the same row timing) is rendered with the camera pose at
-  /// t + (r + 0.5 - height / 2) / height * readout_time on the same camera path (t = i / fps; see
-  /// Renderer::render with a pose function); the ground-truth pose of the frame stays the pose
-  /// at t (the middle of the readout).
+  /// Rolling-shutter readout time in seconds (first to last row), in [-0.1, 0.1]; 0 renders a
+  /// global shutter, a negative time reads the rows bottom to top. When not 0, frame i's row r
+  /// (colour and registered depth alike, as for a Kinect-like sensor that reads both with the same
+  /// row timing) is rendered with the camera pose at t + (r + 0.5 - height / 2) / height *
+  /// readout_time on the same camera path (t = i / fps; see Renderer::render with a pose function);
+  /// the ground-truth pose of the frame stays the pose at t (the middle of the readout).
   double readout_time = 0.0;
 
   /// Moving objects for dynamic-scene tests: "people" that move freely in 3D (one by default, up

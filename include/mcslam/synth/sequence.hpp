@@ -18,7 +18,7 @@ namespace mcslam::synth {
 
 /// In-memory generation: frames are rendered on demand, no disk I/O. Frame i is at scene time
 /// t = i / fps with timestamp 1.0 + t; its noise is seeded from options.seed and t. With
-/// options.readout_time > 0 frames are rolling-shutter renders (see SynthOptions::readout_time)
+/// options.readout_time != 0 frames are rolling-shutter renders (see SynthOptions::readout_time)
 /// and T_w_c(i) is the pose at the middle of the readout.
 class SyntheticSequence {
  public:
@@ -64,7 +64,7 @@ class SyntheticSequence {
 ///     height: 480
 ///     depth_factor: 5000.0
 ///     bf: 40.0
-///     readout_time: 0.03   (only when options.readout_time > 0)
+///     readout_time: 0.03   (only when options.readout_time != 0)
 /// Timestamps are written with 6 decimals.
 ///
 /// detections.json (perception::write_detections, source "synthetic ground truth"): the oracle
