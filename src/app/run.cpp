@@ -729,7 +729,8 @@ nlohmann::json run_frames(const RunRequest& request, const io::RgbdSequence& seq
                         {"stale_iou_median", compute_stats(stale_iou).median}};
     d["mover_frames"] = mover_frames;  // frames where motion without a box was found
     // Every forward pass of a model, whichever frame used its boxes: the detector's actual rate.
-    if (system.detection_source()) {
+    // (none for boxes from a file)
+    if (system.detection_source() && !system.detection_source()->pass_times_ms().empty()) {
       const std::vector<double> passes_ms = system.detection_source()->pass_times_ms();
       const SampleStats pass = compute_stats(passes_ms);
       d["detector_passes"] = passes_ms.size();
