@@ -730,8 +730,10 @@ nlohmann::json run_frames(const RunRequest& request, const io::RgbdSequence& seq
     d["mover_frames"] = mover_frames;  // frames where motion without a box was found
     // Every forward pass of a model, whichever frame used its boxes: the detector's actual rate.
     // (none for boxes from a file)
-    if (system.detection_source() && !system.detection_source()->pass_times_ms().empty()) {
-      const std::vector<double> passes_ms = system.detection_source()->pass_times_ms();
+    const std::vector<double> passes_ms = system.detection_source()
+                                              ? system.detection_source()->pass_times_ms()
+                                              : std::vector<double>{};
+    if (!passes_ms.empty()) {
       const SampleStats pass = compute_stats(passes_ms);
       d["detector_passes"] = passes_ms.size();
       d["detector_rate_hz"] = wall_s > 0.0 ? passes_ms.size() / wall_s : 0.0;
