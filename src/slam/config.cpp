@@ -187,6 +187,7 @@ std::vector<Field> mcslam_fields(PinholeCamera& c, SystemOptions& o) {
       {"readout.huber", &o.readout.huber},
       {"readout.max_readout", &o.readout.max_readout},
       {"readout.anchor_age", &o.readout.anchor_age},
+      {"readout.calibration_seconds", &o.readout.calibration_seconds},
       {"system.sequential", &o.sequential},
       {"system.detection_interval", &o.detection_interval},
       {"system.background_niceness", &o.background_niceness},

@@ -18,6 +18,8 @@ std::optional<std::string> ReadoutOptions::check() const {
   if (!(max_readout > 0.0 && max_readout <= 0.1)) return "readout.max_readout must be in (0, 0.1]";
   if (!(anchor_age > 0.0) || !std::isfinite(anchor_age))
     return "readout.anchor_age must be positive";
+  if (!(calibration_seconds >= 0.0) || !std::isfinite(calibration_seconds))
+    return "readout.calibration_seconds must be finite and >= 0";
   return std::nullopt;
 }
 

@@ -55,6 +55,12 @@ struct ReadoutOptions {
   /// must differ between a frame and its anchor for r to show: a hand-held camera's turns last
   /// about half a second to a second, so anchors up to 1 s old see the other direction too.
   double anchor_age = 1.0;
+  /// With auto on a recorded sequence, at most this much of its start (s) is tracked by the
+  /// calibration pass (readout_calibration.hpp) before the run; 0: no pass. The estimate needs
+  /// min_frames turning frames: 1-4 s on the hand-held TUM and Bonn sequences; a start that
+  /// does not turn for 10 s costs a pass of 300 frames (about 10 s of CPU) and then gives no
+  /// estimate (the run starts from the configured value).
+  double calibration_seconds = 10.0;
 
   std::optional<std::string> check() const;
 };
