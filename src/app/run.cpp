@@ -265,11 +265,10 @@ nlohmann::json readout_json(const slam::ReadoutReport& r) {
 io::RgbdImages load_checked(const io::FrameEntry& entry, const PinholeCamera& camera) {
   io::RgbdImages raw = io::load_rgbd(entry, camera.depth_factor);
   if (raw.rgb.cols != camera.width || raw.rgb.rows != camera.height)
-    throw InputError(file_error(entry.rgb_path, "image is " + std::to_string(raw.rgb.cols) + "x" +
-                                                    std::to_string(raw.rgb.rows) +
-                                                    " but the camera is " +
-                                                    std::to_string(camera.width) + "x" +
-                                                    std::to_string(camera.height)));
+    throw InputError(file_error(
+        entry.rgb_path, "image is " + std::to_string(raw.rgb.cols) + "x" +
+                            std::to_string(raw.rgb.rows) + " but the camera is " +
+                            std::to_string(camera.width) + "x" + std::to_string(camera.height)));
   return raw;
 }
 

@@ -32,8 +32,8 @@ ReadoutCalibration calibrate_readout(const PinholeCamera& camera, const SystemOp
   system.finish();
   out.report = system.readout_report();
   if (out.report.confident) out.readout_time = out.report.readout_time;
-  out.wall_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
-                    .count();
+  out.wall_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return out;
 }
 

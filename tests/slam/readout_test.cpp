@@ -178,10 +178,11 @@ TEST(ReadoutCalibration, FindsTheReadoutFromAWrongStart) {
       calibrate_readout(camera, SystemOptions{}, static_cast<std::size_t>(seq.size()), frame);
   const double ate_calibrated = ate_with_fixed(seq, c.readout_time);
   const double ate_none = ate_with_fixed(seq, 0.0);
-  std::printf("calibration: %+.2f +- %.2f ms after %d frames (%.2f s); ATE %.1f mm, without "
-              "compensation %.1f mm\n",
-              c.readout_time * 1e3, c.report.std * 1e3, c.frames, c.sequence_s,
-              ate_calibrated * 1e3, ate_none * 1e3);
+  std::printf(
+      "calibration: %+.2f +- %.2f ms after %d frames (%.2f s); ATE %.1f mm, without "
+      "compensation %.1f mm\n",
+      c.readout_time * 1e3, c.report.std * 1e3, c.frames, c.sequence_s, ate_calibrated * 1e3,
+      ate_none * 1e3);
   EXPECT_TRUE(c.report.confident);
   // It stops once confident (30 turning frames), well before the sequence's end.
   EXPECT_LT(c.frames, seq.size());

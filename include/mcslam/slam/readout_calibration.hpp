@@ -28,10 +28,10 @@ struct RecordedFrame {
 };
 
 struct ReadoutCalibration {
-  ReadoutReport report;       ///< the pass's estimator at its end
-  int frames = 0;             ///< frames the pass tracked (or tried to)
-  double sequence_s = 0.0;    ///< the span of the sequence it used (s)
-  double wall_ms = 0.0;       ///< what it took
+  ReadoutReport report;     ///< the pass's estimator at its end
+  int frames = 0;           ///< frames the pass tracked (or tried to)
+  double sequence_s = 0.0;  ///< the span of the sequence it used (s)
+  double wall_ms = 0.0;     ///< what it took
   /// The readout the run proper starts from: the pass's readout in use when it became
   /// confident (the estimate, or 0 when not significantly non-zero); otherwise the camera's.
   double readout_time = 0.0;
