@@ -259,6 +259,31 @@ TEST(CliRun, RealTimeRunAccountsForEveryFrame) {
   EXPECT_NE(both.err.find("--realtime"), std::string::npos) << both;
 }
 
+// camera.readout_time: auto on a recorded sequence runs the calibration pass first and reports it.
+// The synthetic camera turns too slowly for a confident estimate: the run then starts from the
+// configured value and goes on estimating.
+TEST(CliRun, ReadoutAutoRunsTheCalibrationPass) {
+  const fs::path config = root() / "readout_auto.yaml";
+  write_file(config, "camera:\n  readout_time: auto\n");
+  const fs::path out = root() / "o_readout_auto";
+  const CliResult r = run_cli("run " + quote(small_sequence().string()) + " --output " +
+                              quote(out.string()) + " --config " + quote(config.string()) +
+                              " --sequential -q");
+  ASSERT_EQ(r.exit_code, 0) << r;
+  const nlohmann::json readout = read_json(out / "summary.json")["readout"];
+  EXPECT_EQ(readout["mode"], "auto");
+  ASSERT_TRUE(readout.contains("calibration")) << readout.dump();
+  const nlohmann::json& c = readout["calibration"];
+  EXPECT_GE(c["frames"].get<int>(), 1);
+  EXPECT_LE(c["frames"].get<int>(), 3);
+  EXPECT_FALSE(c["confident"].get<bool>());
+  EXPECT_GE(c["wall_ms"].get<double>(), 0.0);
+  bool auto_in_yaml = false;
+  for (const auto& line : lines_of(out / "config.yaml"))
+    auto_in_yaml = auto_in_yaml || line.find("readout_time: auto") != std::string::npos;
+  EXPECT_TRUE(auto_in_yaml);
+}
+
 TEST(CliRun, SavedMapIsAValidPlyAndJson) {
   const MainRun& run = main_run();
   ASSERT_EQ(run.result.exit_code, 0) << run.result;
