@@ -21,9 +21,9 @@ PinholeCamera make_camera(double fx, double fy, double cx, double cy,
   // All presets are Kinect v1 class sensors (Kinect, ASUS Xtion) whose colour camera has a
   // rolling shutter, read top to bottom in about 20 ms (measured on TUM freiburg1_rpy: the
   // tracking inlier ratio peaks at 10-20 ms, the ATE is lowest at 20-25 ms). The estimate of
-  // `camera.readout_time: auto` (25 ms on freiburg1_rpy, 30 ms on Bonn) is not the default: on
-  // Bonn crowd it cost 2-3 mm of ATE against this value (README "Rolling shutter"); given on
-  // top of a preset, `auto` starts from this value.
+  // `camera.readout_time: auto` (its calibration pass: 21.6 ms on freiburg1_rpy, 33.6 ms on
+  // Bonn) is not the default: on Bonn crowd it cost 6 mm of ATE against this value, more than
+  // no compensation (README "Live cameras"); given on top of a preset, `auto` starts from it.
   camera.readout_time = 0.02;
   return camera;
 }
