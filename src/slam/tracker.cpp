@@ -142,11 +142,19 @@ TrackingOutcome Tracker::track(const Frame& frame, bool mapper_idle, std::size_t
   bool ok = false;
   bool relocalised = false;
   bool tried_relocalisation = false;
+  // The constant-velocity prediction over this frame's own interval: after a dropped frame (live
+  // cameras, --realtime) it spans two steps, and one step's motion would leave half the turn
+  // to the matching window (at freiburg1_rpy's 1.5 rad/s, 3 degrees).
+  const auto predict = [&](const SE3& T_last) {
+    const std::optional<SE3> motion =
+        last_ ? predicted_motion(frame.timestamp - last_->frame.timestamp) : std::nullopt;
+    return motion ? (*motion) * T_last : T_last;
+  };
   const auto first_estimate = [&] {
     if (state_ == TrackingState::kOk) {
       const std::optional<SE3> T_last = last_frame_pose();
       if (T_last) {
-        const SE3 prediction = velocity_ ? (*velocity_) * (*T_last) : *T_last;
+        const SE3 prediction = predict(*T_last);
         ok = track_last_frame(frame, prediction, assoc, T_c_w);
         // A sudden motion breaks the constant-velocity model: retry from the last pose.
         if (!ok && velocity_) {
@@ -170,8 +178,7 @@ TrackingOutcome Tracker::track(const Frame& frame, bool mapper_idle, std::size_t
   {
     std::optional<SE3> predicted;
     if (state_ == TrackingState::kOk)
-      if (const auto T_last = last_frame_pose())
-        predicted = velocity_ ? (*velocity_) * (*T_last) : *T_last;
+      if (const auto T_last = last_frame_pose()) predicted = predict(*T_last);
     objects_.prepare(frame, predicted);
   }
   if (times) times->add("object_prepare", watch.elapsed_ms());
