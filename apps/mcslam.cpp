@@ -207,7 +207,8 @@ int main(int argc, char** argv) {
   mcslam::app::RunRequest run;
   bool quiet = false;
   bool sequential = false, threaded = false;
-  auto* run_cmd = cli.add_subcommand("run", "Run SLAM on a TUM-layout RGB-D sequence");
+  auto* run_cmd =
+      cli.add_subcommand("run", "Run SLAM on a TUM-layout RGB-D sequence or a ROS 1 bag");
   run_cmd
       ->add_option("sequence", run.sequence_dir,
                    "Sequence folder (rgb.txt, depth.txt, ...) or ROS 1 bag file")
