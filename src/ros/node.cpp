@@ -49,12 +49,16 @@ class TopicSource : public app::LiveSource {
     std::lock_guard lock(mutex_);
     return hints_.intrinsics.has_value();
   }
-  /// Ends the stream: next() returns nullopt (also with frames still queued).
+  /// Ends the stream. On request (no error) next() returns nullopt at once; after an error the
+  /// frames received before it are processed first.
   void close(const std::string& error = {}) {
     {
       std::lock_guard lock(mutex_);
       closed_ = true;
-      if (error_.empty()) error_ = error;
+      if (error_.empty() && !error.empty()) {
+        error_ = error;
+        drain_ = true;
+      }
     }
     changed_.notify_all();
   }
@@ -66,7 +70,7 @@ class TopicSource : public app::LiveSource {
   std::optional<app::LiveFrame> next() override {
     std::unique_lock lock(mutex_);
     changed_.wait(lock, [this] { return closed_ || !queue_.empty(); });
-    if (closed_) return std::nullopt;
+    if (queue_.empty() || (closed_ && !drain_)) return std::nullopt;
     app::LiveFrame frame = std::move(queue_.front());
     queue_.pop_front();
     frame.dropped_before = pending_dropped_;
@@ -86,6 +90,7 @@ class TopicSource : public app::LiveSource {
   std::deque<app::LiveFrame> queue_;
   std::size_t pending_dropped_ = 0;
   bool closed_ = false;
+  bool drain_ = false;
   std::string error_;
   io::CameraHints hints_;
 };
@@ -116,11 +121,11 @@ std::optional<std::string> NodeOptions::check() const {
 nlohmann::json run_node(app::RunRequest request, const NodeOptions& options,
                         const std::function<bool()>& stop_requested) {
   namespace fs = std::filesystem;
-  if (auto e = options.check()) throw InputError("mcslam ros: " + *e);
+  if (auto e = options.check()) throw InputError("ros: " + *e);
   if (!detail::Transport::init(options, stop_requested)) {
     if (stop_requested()) return {};
-    throw InputError("mcslam ros: cannot reach the ROS master at " +
-                     detail::Transport::master_uri() + " (start roscore, or set ROS_MASTER_URI)");
+    throw InputError("cannot reach the ROS master at " + detail::Transport::master_uri() +
+                     " (start roscore, or set ROS_MASTER_URI)");
   }
   auto source = std::make_shared<TopicSource>(options);
   detail::Transport::Callbacks callbacks;
@@ -157,10 +162,12 @@ nlohmann::json run_node(app::RunRequest request, const NodeOptions& options,
   try {
     if (!options.topics.camera_info.empty()) {
       std::cerr << "mcslam ros: waiting for " << options.topics.camera_info << "\n";
-      while (!source->have_intrinsics() && !stop_requested() && detail::Transport::ok())
+      while (!source->have_intrinsics() && source->error().empty() && !stop_requested() &&
+             detail::Transport::ok())
         std::this_thread::sleep_for(std::chrono::milliseconds(20));
       if (!source->have_intrinsics()) {
         finish();
+        if (const std::string error = source->error(); !error.empty()) throw InputError(error);
         return summary;
       }
     }
@@ -203,8 +210,7 @@ nlohmann::json run_node(app::RunRequest request, const NodeOptions& options,
   }
   finish();
   if (scratch) fs::remove_all(*scratch);
-  if (const std::string error = source->error(); !error.empty())
-    throw InputError("mcslam ros: " + error);
+  if (const std::string error = source->error(); !error.empty()) throw InputError(error);
   return summary;
 }
 

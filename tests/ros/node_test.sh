@@ -68,4 +68,23 @@ ate_final=$("$MCSLAM" eval --gt "$WORK/offline/trajectory.txt" --est "$WORK/pose
 echo "published poses: $poses of $FRAMES frames; ATE against the offline run: $ate m (online" \
   "poses), $ate_final m (final trajectory)"
 python3 -c "import sys; sys.exit(0 if $ate <= 0.005 else 1)" || fail "ATE $ate m > 5 mm"
+
+# An image the node cannot use (colour message 3 in yuv422): one error, exit 1, and the frames
+# received before it processed and written.
+"$TOOL" mutate "$WORK/seq.bag" "$WORK/bad.bag" encoding
+setsid "$MCSLAM" ros --output "$WORK/node_bad" --sequential --keep-all > "$WORK/node.log" 2>&1 &
+node=$!
+groups+=($node)
+"$TOOL" play "$WORK/bad.bag" "$WORK/poses_bad.txt" "$WORK/topics_bad.txt" 3 30 || fail "player failed"
+set +e
+wait "$node"
+rc=$?
+set -e
+[ $rc -eq 1 ] || fail "node exit code $rc on a bad image, expected 1"
+[ "$(grep -c '^mcslam: error: ' "$WORK/node.log")" -eq 1 ] || fail "not one error line"
+grep -q "^mcslam: error: /camera/rgb/image_color: unknown colour encoding 'yuv422'" \
+  "$WORK/node.log" || fail "the error does not name the topic and the encoding"
+[ "$(grep -vc '^#' "$WORK/node_bad/trajectory.txt")" -eq 3 ] ||
+  fail "the 3 frames before the bad image were not all written"
+echo "bad image: $(grep '^mcslam: error: ' "$WORK/node.log")"
 echo "PASS"
