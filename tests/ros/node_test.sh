@@ -12,11 +12,28 @@ if ! command -v roscore > /dev/null; then
   echo "SKIP: roscore not installed (scripts/install-deps.sh)"; exit 77
 fi
 
+# Processes started here, each the leader of its own group. roscore starts rosmaster and rosout
+# in sessions of their own, so the cleanup also stops every descendant it finds.
 groups=()
+descendants() {
+  local p
+  for p in $(ps -o pid= --ppid "$1" 2> /dev/null); do
+    echo "$p"
+    descendants "$p"
+  done
+}
 cleanup() {
-  for g in "${groups[@]}"; do kill -INT -- "-$g" 2> /dev/null || true; done
-  sleep 1
-  for g in "${groups[@]}"; do kill -KILL -- "-$g" 2> /dev/null || true; done
+  local all=() p alive
+  for p in "${groups[@]}"; do all+=("$p" $(descendants "$p")); done
+  for p in "${groups[@]}"; do kill -INT -- "-$p" 2> /dev/null || true; done
+  for _ in $(seq 1 100); do
+    alive=0
+    for p in "${all[@]}"; do kill -0 "$p" 2> /dev/null && alive=1; done
+    [ $alive -eq 0 ] && return 0
+    sleep 0.1
+  done
+  for p in "${groups[@]}"; do kill -KILL -- "-$p" 2> /dev/null || true; done
+  for p in "${all[@]}"; do kill -KILL "$p" 2> /dev/null || true; done
 }
 trap cleanup EXIT
 
