@@ -486,6 +486,8 @@ int main(int argc, char** argv) {
       run.progress = !quiet && isatty(fileno(stderr));
       if (is_bag_path(run.sequence_dir)) {
 #ifdef MCSLAM_HAVE_ROS
+        if (run.associations_path)
+          throw mcslam::InputError("--associations: only for a sequence folder, not a bag");
         mcslam::ros::BagOptions bag_options;
         bag_options.topics = topic_options(run_topics);
         run.source = mcslam::ros::BagSource::open(run.sequence_dir, bag_options);

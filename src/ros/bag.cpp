@@ -99,6 +99,7 @@ struct BagSource::Impl {
   Trajectory groundtruth;
   io::CameraHints hints;
   std::vector<std::string> warnings;
+  bool groundtruth_type_warned = false;
 
   std::string where(const std::string& topic, std::size_t k, double stamp) const {
     return file_error(path, "topic '" + topic + "' message " + std::to_string(k) + " (stamp " +
@@ -159,11 +160,13 @@ void BagSource::Impl::add_groundtruth(const rosbag::MessageInstance& m) {
     groundtruth.push_back(
         {o->header.stamp.toSec(), to_se3(o->pose.pose.orientation, o->pose.pose.position.x,
                                          o->pose.pose.position.y, o->pose.pose.position.z)});
-  } else {
-    throw InputError(file_error(path, "ground-truth topic '" + t.groundtruth + "' has type " +
-                                          m.getDataType() +
-                                          " (use tf2_msgs/TFMessage, geometry_msgs/PoseStamped, "
-                                          "geometry_msgs/TransformStamped or nav_msgs/Odometry)"));
+  } else if (!groundtruth_type_warned) {
+    groundtruth_type_warned = true;
+    warnings.push_back(file_error(path, "ground-truth topic '" + t.groundtruth + "' has type " +
+                                            m.getDataType() +
+                                            " (use tf2_msgs/TFMessage, geometry_msgs/PoseStamped, "
+                                            "geometry_msgs/TransformStamped or nav_msgs/Odometry): "
+                                            "no ground truth"));
   }
 }
 
@@ -203,11 +206,15 @@ void BagSource::Impl::scan() {
         add_image(depth, m, true);
       } else if (topic == t.camera_info) {
         if (have_info) continue;
-        const auto info = m.instantiate<sensor_msgs::CameraInfo>();
-        if (!info)
-          throw InputError(file_error(path, "topic '" + topic + "' has type " + m.getDataType() +
-                                                ", expected sensor_msgs/CameraInfo"));
         have_info = true;
+        const auto info = m.instantiate<sensor_msgs::CameraInfo>();
+        if (!info) {  // another type, or an old definition of CameraInfo
+          warnings.push_back(file_error(path, "topic '" + topic + "' (" + m.getDataType() +
+                                                  ", md5 " + m.getMD5Sum() +
+                                                  ") is not a sensor_msgs/CameraInfo this ROS "
+                                                  "reads: intrinsics not taken from it"));
+          continue;
+        }
         if (info->K[0] > 0.0 && info->K[4] > 0.0) {
           io::CameraHints::Intrinsics k;
           k.fx = info->K[0];
