@@ -1,10 +1,13 @@
-// mcslam command-line interface: run, bench, eval, synth, detect, vocabulary.
+// mcslam command-line interface: run, bench, eval, synth, detect, vocabulary, and with ROS
+// export-bag and ros.
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
 #include <csignal>
 #include <cstdio>
+#include <filesystem>
 #include <iostream>
+#include <optional>
 
 #include "mcslam/app/bench.hpp"
 #include "mcslam/app/detect.hpp"
@@ -15,9 +18,63 @@
 #include "mcslam/eval/bonn.hpp"
 #include "mcslam/eval/metrics.hpp"
 #include "mcslam/io/trajectory_io.hpp"
+#include "mcslam/slam/config.hpp"
 #include "mcslam/synth/sequence.hpp"
+#ifdef MCSLAM_HAVE_ROS
+#include "mcslam/ros/bag.hpp"
+#include "mcslam/ros/node.hpp"
+#endif
 
 namespace {
+
+/// Topic options as typed (the ROS module turns them into ros::TopicOptions).
+struct TopicArgs {
+  std::string preset = "tum";
+  std::optional<std::string> rgb, depth, camera_info, groundtruth, world_frame, camera_frame;
+};
+
+void add_topic_options(CLI::App* cmd, TopicArgs& t) {
+  cmd->add_option("--topics", t.preset,
+                  "Topic names preset: tum (/camera/rgb/image_color, /camera/depth/image, "
+                  "/camera/rgb/camera_info, /tf; the default) or realsense "
+                  "(/camera/color/image_raw, /camera/aligned_depth_to_color/image_raw, "
+                  "/camera/color/camera_info)")
+      ->check(CLI::IsMember({"tum", "realsense"}));
+  cmd->add_option("--rgb-topic", t.rgb, "Colour image topic (sensor_msgs/Image)");
+  cmd->add_option("--depth-topic", t.depth, "Depth image topic (16UC1 mm or 32FC1 m)");
+  cmd->add_option("--info-topic", t.camera_info,
+                  "sensor_msgs/CameraInfo topic (\"\": none; the camera then comes from the "
+                  "preset or --config)");
+  cmd->add_option("--gt-topic", t.groundtruth,
+                  "Ground-truth topic: TF, PoseStamped, TransformStamped or Odometry (\"\": none)");
+  cmd->add_option("--gt-world-frame", t.world_frame, "Ground truth on TF: the parent frame");
+  cmd->add_option("--gt-camera-frame", t.camera_frame, "Ground truth on TF: the child frame");
+}
+
+bool is_bag_path(const std::string& path) {
+  return std::filesystem::is_regular_file(path) ||
+         (path.size() > 4 && path.compare(path.size() - 4, 4, ".bag") == 0);
+}
+
+[[noreturn, maybe_unused]] void no_ros(const std::string& what) {
+  throw mcslam::InputError(what +
+                           ": mcslam was built without ROS support (install the ROS packages "
+                           "with scripts/install-deps.sh and rebuild)");
+}
+
+#ifdef MCSLAM_HAVE_ROS
+mcslam::ros::TopicOptions topic_options(const TopicArgs& a) {
+  mcslam::ros::TopicOptions t = mcslam::ros::TopicOptions::preset(a.preset);
+  if (a.rgb) t.rgb = *a.rgb;
+  if (a.depth) t.depth = *a.depth;
+  if (a.camera_info) t.camera_info = *a.camera_info;
+  if (a.groundtruth) t.groundtruth = *a.groundtruth;
+  if (a.world_frame) t.world_frame = *a.world_frame;
+  if (a.camera_frame) t.camera_frame = *a.camera_frame;
+  if (auto e = t.check()) throw mcslam::InputError("topics: " + *e);
+  return t;
+}
+#endif
 
 // Set by SIGINT/SIGTERM during `mcslam run`: the run stops after the current frame and writes its
 // results (signals are process-wide, hence a file-scope flag; it never leaves this file).
@@ -150,9 +207,17 @@ int main(int argc, char** argv) {
   mcslam::app::RunRequest run;
   bool quiet = false;
   bool sequential = false, threaded = false;
-  auto* run_cmd = cli.add_subcommand("run", "Run SLAM on a TUM-layout RGB-D sequence");
-  run_cmd->add_option("sequence", run.sequence_dir, "Sequence folder (rgb.txt, depth.txt, ...)")
+  auto* run_cmd =
+      cli.add_subcommand("run", "Run SLAM on a TUM-layout RGB-D sequence or a ROS 1 bag");
+  run_cmd
+      ->add_option("sequence", run.sequence_dir,
+                   "Sequence folder (rgb.txt, depth.txt, ...) or ROS 1 bag file")
       ->required();
+  TopicArgs run_topics;
+  add_topic_options(run_cmd, run_topics);
+  run_cmd->add_option("--camera-preset", run.camera_preset,
+                      "Camera preset (tum_fr1, tum_fr2, tum_fr3, bonn) instead of the one the "
+                      "folder or file name chooses");
   run_cmd->add_option("--output,-o", run.output_dir, "Folder for the results")->required();
   run_cmd->add_option("--config,-c", run.config_path, "Settings file (mcslam or ORB-SLAM2 YAML)");
   run_cmd->add_option("--associations", run.associations_path,
@@ -201,6 +266,64 @@ int main(int argc, char** argv) {
                     "Deliver frames at their timestamps as a live camera does, dropping those the "
                     "pipeline cannot take in time (dropped frames and latency in the summary)");
   run_cmd->add_flag("--quiet,-q", quiet, "No progress bar and no summary");
+
+  // export-bag: a TUM-layout folder as a ROS 1 bag.
+  std::string export_sequence, export_bag;
+  std::optional<std::string> export_config, export_preset;
+  std::string export_rgb_encoding = "bgr8", export_depth_encoding = "32FC1";
+  TopicArgs export_topics;
+  auto* export_cmd =
+      cli.add_subcommand("export-bag", "Write a TUM-layout sequence as a ROS 1 bag (needs ROS)");
+  export_cmd->add_option("sequence", export_sequence, "Sequence folder")->required();
+  export_cmd->add_option("bag", export_bag, "Bag file to write")->required();
+  export_cmd->add_option("--config,-c", export_config, "Settings file for the camera");
+  export_cmd->add_option("--camera-preset", export_preset,
+                         "Camera preset instead of the one the folder name chooses");
+  export_cmd->add_option("--rgb-encoding", export_rgb_encoding, "bgr8 (default) or rgb8")
+      ->check(CLI::IsMember({"bgr8", "rgb8"}));
+  export_cmd
+      ->add_option("--depth-encoding", export_depth_encoding,
+                   "32FC1 (metres, as the TUM bags; default) or 16UC1 (millimetres)")
+      ->check(CLI::IsMember({"32FC1", "16UC1"}));
+  add_topic_options(export_cmd, export_topics);
+  export_cmd->add_flag("--quiet,-q", quiet, "No summary");
+
+  // ros: the live node.
+  mcslam::app::RunRequest node_run;
+  TopicArgs node_topics;
+  bool node_keep_all = false, node_sequential = false;
+  std::string node_prefix = "/mcslam", node_map_frame = "map", node_camera_frame = "camera";
+  double node_cloud_period = 1.0;
+  auto* ros_cmd = cli.add_subcommand(
+      "ros",
+      "ROS node: SLAM on live colour + depth topics; publishes pose, TF, path, map points and the "
+      "annotated image (needs ROS and a running roscore)");
+  ros_cmd->add_option("--output,-o", node_run.output_dir,
+                      "Also write the run's results here when the node stops (Ctrl-C)");
+  ros_cmd->add_option("--config,-c", node_run.config_path, "Settings file (mcslam or ORB-SLAM2)");
+  ros_cmd->add_option("--camera-preset", node_run.camera_preset,
+                      "Camera preset (tum_fr1, tum_fr2, tum_fr3, bonn) below the CameraInfo");
+  add_topic_options(ros_cmd, node_topics);
+  ros_cmd->add_option("--prefix", node_prefix,
+                      "Output topics: PREFIX/pose, PREFIX/path, PREFIX/map_points, PREFIX/image");
+  ros_cmd->add_option("--map-frame", node_map_frame, "Frame of the poses and the map (map)");
+  ros_cmd->add_option("--camera-frame", node_camera_frame, "TF child frame of the camera");
+  ros_cmd
+      ->add_option("--cloud-period", node_cloud_period,
+                   "Seconds between map point clouds (default 1)")
+      ->check(CLI::PositiveNumber);
+  ros_cmd->add_flag("--keep-all", node_keep_all,
+                    "Process every frame (replays, tests) instead of only the newest (a robot)");
+  ros_cmd->add_flag("--sequential", node_sequential,
+                    "Map inline after each keyframe (deterministic; replays and tests)");
+  ros_cmd->add_option("--model", node_run.model, "ONNX object detector");
+  ros_cmd->add_option("--confidence", node_run.confidence, "Detector confidence threshold");
+  ros_cmd->add_option("--features", node_run.features, "Subset of points,lines,planes");
+  ros_cmd->add_option("--vocabulary", node_run.vocabulary, "Bag-of-words vocabulary file");
+  ros_cmd->add_flag("--no-loop-closing", node_run.no_loop_closing, "Do not close loops");
+  ros_cmd->add_flag("--save-map", node_run.save_map, "With --output: also map.ply and map.json");
+  ros_cmd->add_flag("--save-overlays", node_run.save_overlays, "With --output: also overlays/");
+  ros_cmd->add_flag("--quiet,-q", quiet, "No summary at the end");
 
   mcslam::app::BenchRequest bench;
   auto* bench_cmd = cli.add_subcommand(
@@ -361,7 +484,61 @@ int main(int argc, char** argv) {
       if (sequential) run.sequential = true;
       if (threaded) run.sequential = false;
       run.progress = !quiet && isatty(fileno(stderr));
+      if (is_bag_path(run.sequence_dir)) {
+#ifdef MCSLAM_HAVE_ROS
+        if (run.associations_path)
+          throw mcslam::InputError("--associations: only for a sequence folder, not a bag");
+        mcslam::ros::BagOptions bag_options;
+        bag_options.topics = topic_options(run_topics);
+        run.source = mcslam::ros::BagSource::open(run.sequence_dir, bag_options);
+#else
+        no_ros("run " + run.sequence_dir);
+#endif
+      }
       return run_command(run, quiet);
+    }
+    if (export_cmd->parsed()) {
+#ifdef MCSLAM_HAVE_ROS
+      mcslam::ros::ExportOptions options;
+      options.topics = topic_options(export_topics);
+      options.rgb_encoding = export_rgb_encoding;
+      options.depth_encoding = export_depth_encoding;
+      const auto source = mcslam::io::FolderSource::open(export_sequence);
+      for (const auto& warning : source->warnings())
+        std::cerr << "mcslam: warning: " << warning << "\n";
+      const mcslam::slam::RunConfig config = mcslam::slam::resolve_run_config(
+          export_sequence, export_config, mcslam::io::CameraHints{}, export_preset);
+      const std::size_t frames =
+          mcslam::ros::export_bag(*source, config.camera, export_bag, options);
+      if (!quiet)
+        std::cout << "wrote " << frames << " frames to " << export_bag << " (camera from "
+                  << config.camera_source << ")\n";
+      return 0;
+#else
+      no_ros("export-bag");
+#endif
+    }
+    if (ros_cmd->parsed()) {
+#ifdef MCSLAM_HAVE_ROS
+      mcslam::ros::NodeOptions options;
+      options.topics = topic_options(node_topics);
+      options.prefix = node_prefix;
+      options.map_frame = node_map_frame;
+      options.camera_frame = node_camera_frame;
+      options.keep_all = node_keep_all;
+      options.cloud_period_s = node_cloud_period;
+      if (node_sequential) node_run.sequential = true;
+      install_stop_handler();
+      const nlohmann::json summary =
+          mcslam::ros::run_node(node_run, options, [] { return g_stop_requested != 0; });
+      if (!quiet && !summary.is_null()) {
+        std::cout << mcslam::app::summary_text(summary);
+        if (!node_run.output_dir.empty()) std::cout << "results in " << node_run.output_dir << "\n";
+      }
+      return 0;
+#else
+      no_ros("ros");
+#endif
     }
     if (bench_cmd->parsed()) {
       bench.progress = !quiet;

@@ -19,6 +19,11 @@ PACKAGES=(
   clang libclang-rt-14-dev  # libFuzzer and the sanitizers of the fuzz preset (scripts/fuzz.sh)
   python3
   chromium  # headless browser test of report.html
+  # ROS 1 (the optional ros module: bags, `mcslam ros`; roscore for its test)
+  libroscpp-dev librosbag-storage-dev libmessage-filters-dev libtf2-ros-dev libtf2-msgs-dev
+  libsensor-msgs-dev libgeometry-msgs-dev libnav-msgs-dev libstd-msgs-dev
+  pluginlib-dev librcpputils-dev libament-index-cpp-dev  # included by rosbag/bag.h
+  python3-roslaunch python3-rosmaster rosout
 )
 # Node.js and npm bundle the report's scripts: Debian's, unless a Node.js with npm is already
 # installed (a newer one from elsewhere would conflict with Debian's npm package).

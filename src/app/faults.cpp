@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "mcslam/core/error.hpp"
+#include "mcslam/io/camera_presets.hpp"
 #include "mcslam/io/files.hpp"
 #include "mcslam/io/sequence.hpp"
 #include "mcslam/io/trajectory_io.hpp"
@@ -56,22 +57,6 @@ std::string absolute(const std::string& path) {
 void write_image(const fs::path& path, const cv::Mat& image) {
   if (!cv::imwrite(path.string(), image))
     throw InputError(file_error(path.string(), "cannot write"));
-}
-
-std::string camera_yaml(const PinholeCamera& c) {
-  std::ostringstream s;
-  s << std::setprecision(12);
-  s << "# the camera of the source sequence (written by mcslam faults)\ncamera:\n"
-    << "  fx: " << c.fx << "\n  fy: " << c.fy << "\n  cx: " << c.cx << "\n  cy: " << c.cy
-    << "\n  width: " << c.width << "\n  height: " << c.height << "\n  k1: " << c.distortion[0]
-    << "\n  k2: " << c.distortion[1] << "\n  p1: " << c.distortion[2]
-    << "\n  p2: " << c.distortion[3] << "\n  k3: " << c.distortion[4]
-    << "\n  depth_factor: " << c.depth_factor << "\n  bf: " << c.bf << "\n  readout_time: ";
-  if (c.readout_auto)
-    s << "auto\n";
-  else
-    s << c.readout_time << "\n";
-  return s.str();
 }
 
 }  // namespace
@@ -242,7 +227,10 @@ nlohmann::json write_faulty_sequence(const FaultRequest& request) {
   if (kept == 0) throw InputError("--fault: every frame would be dropped");
   io::write_file_atomic((out / "rgb.txt").string(), rgb.str());
   io::write_file_atomic((out / "depth.txt").string(), depth.str());
-  io::write_file_atomic((out / "camera.yaml").string(), camera_yaml(config.camera));
+  io::write_file_atomic(
+      (out / "camera.yaml").string(),
+      io::camera_settings_yaml(config.camera,
+                               "the camera of the source sequence (written by mcslam faults)"));
   if (groundtruth) io::write_tum_trajectory((out / "groundtruth.txt").string(), *groundtruth);
   if (boxes) {
     perception::DetectionsFile copy = *boxes;

@@ -261,17 +261,6 @@ nlohmann::json readout_json(const slam::ReadoutReport& r) {
   return j;
 }
 
-/// One frame's images, of the camera's size (InputError naming the file otherwise).
-io::RgbdImages load_checked(const io::FrameEntry& entry, const PinholeCamera& camera) {
-  io::RgbdImages raw = io::load_rgbd(entry, camera.depth_factor);
-  if (raw.rgb.cols != camera.width || raw.rgb.rows != camera.height)
-    throw InputError(file_error(
-        entry.rgb_path, "image is " + std::to_string(raw.rgb.cols) + "x" +
-                            std::to_string(raw.rgb.rows) + " but the camera is " +
-                            std::to_string(camera.width) + "x" + std::to_string(camera.height)));
-  return raw;
-}
-
 /// The calibration pass before the run (summary.json "readout" / "calibration").
 nlohmann::json calibration_json(const slam::ReadoutCalibration& c) {
   return {{"frames", c.frames},
@@ -345,10 +334,24 @@ struct StreamPlan {
   double period = 0.0;             // last - first + gap: pass k starts at first + k * period
 };
 
+/// One frame's images, of the camera's size (InputError naming the file otherwise).
+io::RgbdImages load_checked(const io::FrameSource& source, const StreamPlan& plan, std::size_t k,
+                            const PinholeCamera& camera) {
+  const io::FrameEntry& entry = plan.frames[k];
+  io::RgbdImages raw = source.load(k % plan.frames_per_pass, camera.depth_factor);
+  if (raw.rgb.cols != camera.width || raw.rgb.rows != camera.height)
+    throw InputError(file_error(
+        entry.rgb_path, "image is " + std::to_string(raw.rgb.cols) + "x" +
+                            std::to_string(raw.rgb.rows) + " but the camera is " +
+                            std::to_string(camera.width) + "x" + std::to_string(camera.height)));
+  return raw;
+}
+
 StreamPlan plan_stream(const std::vector<io::FrameEntry>& frames, int passes) {
   StreamPlan plan;
   plan.passes = passes;
   plan.frames_per_pass = frames.size();
+  if (frames.empty()) return plan;  // a live stream
   plan.first = frames.front().rgb_timestamp;
   plan.last = frames.back().rgb_timestamp;
   std::vector<double> gaps;
@@ -448,7 +451,8 @@ struct StageTable {
   }
 };
 
-nlohmann::json run_frames(const RunRequest& request, const io::RgbdSequence& sequence,
+nlohmann::json run_frames(const RunRequest& request, const std::string& source_path,
+                          const io::FrameSource* source, const std::vector<std::string>& warnings,
                           const StreamPlan& plan, std::size_t total, const slam::RunConfig& config,
                           std::unique_ptr<slam::DetectionSource> detection_source,
                           std::unique_ptr<map::Map> initial_map,
@@ -517,14 +521,16 @@ nlohmann::json run_frames(const RunRequest& request, const io::RgbdSequence& seq
     passes.push_back(std::move(p));
   };
   // Frames are read, decoded and undistorted on the feed's thread, off the frame loop.
-  const auto load = [&plan, &system, &camera = config.camera](std::size_t k) {
-    const io::RgbdImages raw = load_checked(plan.frames[k], camera);
+  const auto load = [&plan, &system, source, &camera = config.camera](std::size_t k) {
+    const io::RgbdImages raw = load_checked(*source, plan, k, camera);
     return system.prepare(raw.rgb, raw.depth);
   };
   std::vector<double> stamps;
   stamps.reserve(total);
   for (std::size_t k = 0; k < total; ++k) stamps.push_back(plan.frames[k].rgb_timestamp);
-  FrameFeed feed(load, std::move(stamps), FeedOptions{request.realtime, 2});
+  // A live stream has no feed: its frames are prepared on this thread as they arrive.
+  std::optional<FrameFeed> feed;
+  if (!request.live) feed.emplace(load, std::move(stamps), FeedOptions{request.realtime, 2});
   std::vector<double> latency_ms;
   std::vector<std::size_t> dropped_before;
   std::size_t offered = 0;  // frames taken or dropped so far
@@ -534,15 +540,39 @@ nlohmann::json run_frames(const RunRequest& request, const io::RgbdSequence& seq
       break;
     }
     // image_load is the time the frame loop waited for the feed (in real time: for the camera).
-    const std::optional<FedFrame> fed = feed.next();
-    if (!fed) break;
-    const io::FrameEntry& entry = plan.frames[fed->index];
+    std::optional<FedFrame> fed;
+    double rgb_timestamp = 0.0, depth_timestamp = 0.0;
+    if (request.live) {
+      Stopwatch wait;
+      std::optional<LiveFrame> frame = request.live->next();
+      if (!frame) break;
+      if (frame->rgb.cols != config.camera.width || frame->rgb.rows != config.camera.height ||
+          frame->depth.size() != frame->rgb.size())
+        throw InputError(
+            request.live->describe() + ": frame at " + std::to_string(frame->rgb_timestamp) +
+            " s is " + std::to_string(frame->rgb.cols) + "x" + std::to_string(frame->rgb.rows) +
+            " (depth " + std::to_string(frame->depth.cols) + "x" +
+            std::to_string(frame->depth.rows) + ") but the camera is " +
+            std::to_string(config.camera.width) + "x" + std::to_string(config.camera.height));
+      fed.emplace();
+      fed->index = done;
+      fed->wait_ms = wait.elapsed_ms();
+      fed->dropped_before = frame->dropped_before;
+      fed->images = system.prepare(frame->rgb, frame->depth);
+      rgb_timestamp = frame->rgb_timestamp;
+      depth_timestamp = frame->depth_timestamp;
+    } else {
+      fed = feed->next();
+      if (!fed) break;
+      rgb_timestamp = plan.frames[fed->index].rgb_timestamp;
+      depth_timestamp = plan.frames[fed->index].depth_timestamp;
+    }
     const slam::PreparedImages& images = fed->images;
     offered = fed->index + 1;
     load_ms.push_back(fed->wait_ms);
     dropped_before.push_back(fed->dropped_before);
-    const slam::FrameResult r = system.process(images, entry.rgb_timestamp, entry.depth_timestamp);
-    if (request.realtime) latency_ms.push_back(1000.0 * (feed.now_s() - fed->due_s));
+    const slam::FrameResult r = system.process(images, rgb_timestamp, depth_timestamp);
+    if (request.realtime) latency_ms.push_back(1000.0 * (feed->now_s() - fed->due_s));
     ++done;
     tracked += r.state == slam::TrackingState::kOk ? 1 : 0;
     lost += r.state == slam::TrackingState::kLost ? 1 : 0;
@@ -630,10 +660,11 @@ nlohmann::json run_frames(const RunRequest& request, const io::RgbdSequence& seq
       counts["plane_inliers"].push_back(r.plane_inliers);
     }
     frame_prefix.push_back(prefix.str());
+    if (request.on_frame) request.on_frame(r, images, system);
 
     if (plan.passes > 1 && (done % plan.frames_per_pass == 0 || done == total)) record_pass();
     // A checkpoint every few seconds: what a kill would leave is a clearly partial run.
-    if (checkpoint_watch.elapsed_ms() > 2000.0 && offered < total) {
+    if (checkpoint_watch.elapsed_ms() > 2000.0 && (request.live || offered < total)) {
       io::write_tum_trajectory((out / "trajectory_online.txt").string(), system.online_trajectory(),
                                "partial: the run was at frame " + std::to_string(offered) + " of " +
                                    std::to_string(total) + " (see status.json)");
@@ -681,7 +712,7 @@ nlohmann::json run_frames(const RunRequest& request, const io::RgbdSequence& seq
 
   nlohmann::json summary;
   summary["state"] = interrupted ? "interrupted" : "complete";
-  summary["sequence"] = fs::path(request.sequence_dir).lexically_normal().string();
+  summary["sequence"] = source_path;
   summary["camera_source"] = config.camera_source;
   if (calibration && calibration->report.confident) {
     // The run used the calibration pass's estimate as a fixed value; the setting was auto.
@@ -775,7 +806,7 @@ nlohmann::json run_frames(const RunRequest& request, const io::RgbdSequence& seq
     }
   }
   if (request.realtime) {
-    const std::vector<std::size_t> dropped = feed.dropped();
+    const std::vector<std::size_t> dropped = feed->dropped();
     const SampleStats latency = compute_stats(latency_ms);
     summary["realtime"] = {
         {"enabled", true},
@@ -821,7 +852,7 @@ nlohmann::json run_frames(const RunRequest& request, const io::RgbdSequence& seq
     summary["mapper_stages"] = mapper;
   }
   summary["stages"] = stages;
-  summary["warnings"] = sequence.warnings();
+  summary["warnings"] = warnings;
   if (groundtruth && !trajectory.empty()) {
     try {
       const eval::EvalReport report = eval::evaluate(*groundtruth, trajectory);
@@ -878,12 +909,23 @@ nlohmann::json run_sequence(const RunRequest& request) {
   if (request.repeat < 1) throw InputError("--repeat: must be at least 1");
   if (request.realtime && request.repeat > 1)
     throw InputError("--realtime: not with --repeat (a soak run plays frames as fast as it can)");
-  io::SequenceOptions seq_options;
-  if (request.associations_path) seq_options.associations_file = *request.associations_path;
-  const io::RgbdSequence sequence = io::RgbdSequence::open(request.sequence_dir, seq_options);
-  for (const auto& warning : sequence.warnings())
-    std::cerr << "mcslam: warning: " << warning << "\n";
-  slam::RunConfig config = slam::resolve_run_config(request.sequence_dir, request.config_path);
+  if (request.live && (request.realtime || request.repeat > 1 || request.max_frames > 0))
+    throw InputError("a live stream runs without --realtime, --repeat and --max-frames");
+  std::shared_ptr<const io::FrameSource> source = request.source;
+  if (!source && !request.live) {
+    io::SequenceOptions seq_options;
+    if (request.associations_path) seq_options.associations_file = *request.associations_path;
+    source = io::FolderSource::open(request.sequence_dir, seq_options);
+  }
+  const std::string source_path = request.live
+                                      ? request.live->describe()
+                                      : fs::path(source->path()).lexically_normal().string();
+  const std::vector<std::string> warnings =
+      source ? source->warnings() : std::vector<std::string>{};
+  for (const auto& warning : warnings) std::cerr << "mcslam: warning: " << warning << "\n";
+  slam::RunConfig config = slam::resolve_run_config(
+      source_path, request.config_path,
+      request.live ? request.live->camera_hints() : source->camera_hints(), request.camera_preset);
   if (request.sequential) config.options.sequential = *request.sequential;
   if (request.vocabulary) config.options.place.vocabulary = *request.vocabulary;
   if (request.no_loop_closing) config.options.place.loop.enabled = false;
@@ -897,12 +939,12 @@ nlohmann::json run_sequence(const RunRequest& request) {
   const fs::path out(request.output_dir);
   io::write_file_atomic((out / "config.yaml").string(), slam::to_yaml(config));
 
-  const StreamPlan plan = plan_stream(sequence.frames(), request.repeat);
+  const StreamPlan plan =
+      plan_stream(source ? source->frames() : std::vector<io::FrameEntry>{}, request.repeat);
   // Ground truth is read before the run so that a broken file is reported at once.
-  std::optional<Trajectory> groundtruth;
-  if (const auto gt_path = sequence.groundtruth_path()) {
-    groundtruth = io::read_tum_trajectory(*gt_path);
-    if (is_bonn(request.sequence_dir)) groundtruth = eval::bonn_marker_to_camera(*groundtruth);
+  std::optional<Trajectory> groundtruth = source ? source->groundtruth() : std::nullopt;
+  if (groundtruth) {
+    if (is_bonn(source_path)) groundtruth = eval::bonn_marker_to_camera(*groundtruth);
     if (request.repeat > 1) groundtruth = repeat_groundtruth(*groundtruth, plan);
   }
 
@@ -925,11 +967,11 @@ nlohmann::json run_sequence(const RunRequest& request) {
     // readout, and the run starts from that estimate (slam/readout_calibration.hpp). Not in real
     // time (a live camera is not replayed) nor in a loaded map (made with a fixed readout).
     std::optional<slam::ReadoutCalibration> calibration;
-    if (config.camera.readout_auto && !request.realtime && !initial_map &&
+    if (source && config.camera.readout_auto && !request.realtime && !initial_map &&
         config.options.readout.calibration_seconds > 0.0) {
       const auto frame = [&](std::size_t k) {
         const io::FrameEntry& entry = plan.frames[k];
-        const io::RgbdImages raw = load_checked(entry, config.camera);
+        const io::RgbdImages raw = load_checked(*source, plan, k, config.camera);
         return slam::RecordedFrame{raw.rgb, raw.depth, entry.rgb_timestamp, entry.depth_timestamp};
       };
       calibration = slam::calibrate_readout(config.camera, config.options, total, frame);
@@ -949,8 +991,9 @@ nlohmann::json run_sequence(const RunRequest& request) {
                   << " over the first " << calibration->frames << " frames in "
                   << std::setprecision(1) << calibration->wall_ms / 1e3 << " s)\n";
     }
-    return run_frames(request, sequence, plan, total, config, std::move(detection_source),
-                      std::move(initial_map), groundtruth, calibration, status);
+    return run_frames(request, source_path, source.get(), warnings, plan, total, config,
+                      std::move(detection_source), std::move(initial_map), groundtruth, calibration,
+                      status);
   } catch (const InputError& e) {
     status.failed(e.what());
     throw;

@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cctype>
+#include <iomanip>
+#include <sstream>
 
 namespace mcslam::io {
 namespace {
@@ -60,6 +62,22 @@ std::optional<PinholeCamera> camera_preset_for_sequence(const std::string& folde
   if (name.find("freiburg3") != std::string::npos) return camera_preset("tum_fr3");
   if (name.find("bonn") != std::string::npos) return camera_preset("bonn");
   return std::nullopt;
+}
+
+std::string camera_settings_yaml(const PinholeCamera& c, const std::string& comment) {
+  std::ostringstream s;
+  s << std::setprecision(12);
+  s << "# " << comment << "\ncamera:\n"
+    << "  fx: " << c.fx << "\n  fy: " << c.fy << "\n  cx: " << c.cx << "\n  cy: " << c.cy
+    << "\n  width: " << c.width << "\n  height: " << c.height << "\n  k1: " << c.distortion[0]
+    << "\n  k2: " << c.distortion[1] << "\n  p1: " << c.distortion[2]
+    << "\n  p2: " << c.distortion[3] << "\n  k3: " << c.distortion[4]
+    << "\n  depth_factor: " << c.depth_factor << "\n  bf: " << c.bf << "\n  readout_time: ";
+  if (c.readout_auto)
+    s << "auto\n";
+  else
+    s << c.readout_time << "\n";
+  return s.str();
 }
 
 }  // namespace mcslam::io

@@ -288,23 +288,62 @@ void apply_config(io::ConfigFile& file, PinholeCamera& camera, SystemOptions& op
 
 RunConfig resolve_run_config(const std::string& sequence_dir,
                              const std::optional<std::string>& settings_path) {
+  return resolve_run_config(sequence_dir, settings_path, io::CameraHints{}, std::nullopt);
+}
+
+RunConfig resolve_run_config(const std::string& source_path,
+                             const std::optional<std::string>& settings_path,
+                             const io::CameraHints& hints,
+                             const std::optional<std::string>& preset_name) {
   namespace fs = std::filesystem;
   RunConfig config;
   bool have_camera = false;
-  fs::path normal = fs::path(sequence_dir).lexically_normal();
+  fs::path normal = fs::path(source_path).lexically_normal();
   if (normal.filename().empty()) normal = normal.parent_path();  // "dir/" names "dir"
   const std::string folder = normal.filename().string();
-  if (auto preset = io::camera_preset_for_sequence(folder)) {
+  if (preset_name) {
+    const auto preset = io::camera_preset(*preset_name);
+    if (!preset) {
+      std::string names;
+      for (const auto& n : io::camera_preset_names()) names += (names.empty() ? "" : ", ") + n;
+      throw InputError("--camera-preset: unknown preset '" + *preset_name + "' (use one of " +
+                       names + ")");
+    }
+    config.camera = *preset;
+    config.camera_source = "preset " + *preset_name + " (--camera-preset)";
+    have_camera = true;
+  } else if (auto preset = io::camera_preset_for_sequence(folder)) {
     config.camera = *preset;
     config.camera_source = "preset chosen by the folder name '" + folder + "'";
     have_camera = true;
   }
-  const fs::path camera_yaml = fs::path(sequence_dir) / "camera.yaml";
-  if (fs::exists(camera_yaml)) {
+  const fs::path camera_yaml = fs::path(source_path) / "camera.yaml";
+  if (fs::is_directory(source_path) && fs::exists(camera_yaml)) {
     io::ConfigFile file = io::ConfigFile::load(camera_yaml.string());
     apply_config(file, config.camera, config.options);
     config.camera_source = camera_yaml.string();
     have_camera = true;
+  }
+  if (hints.settings_yaml) {
+    io::ConfigFile file = io::ConfigFile::from_string(*hints.settings_yaml, hints.settings_name);
+    apply_config(file, config.camera, config.options);
+    config.camera_source = hints.settings_name;
+    have_camera = true;
+  }
+  if (hints.intrinsics) {
+    const io::CameraHints::Intrinsics& k = *hints.intrinsics;
+    config.camera.fx = k.fx;
+    config.camera.fy = k.fy;
+    config.camera.cx = k.cx;
+    config.camera.cy = k.cy;
+    config.camera.width = k.width;
+    config.camera.height = k.height;
+    config.camera.distortion = k.distortion;
+    config.camera_source = have_camera
+                               ? config.camera_source + ", intrinsics from " + hints.intrinsics_name
+                               : hints.intrinsics_name;
+    have_camera = true;
+    if (auto e = config.camera.check()) throw InputError(file_error(hints.intrinsics_name, *e));
   }
   if (settings_path) {
     io::ConfigFile file = io::ConfigFile::load(*settings_path);
@@ -316,10 +355,11 @@ RunConfig resolve_run_config(const std::string& sequence_dir,
     }
   }
   if (!have_camera)
-    throw InputError(file_error(sequence_dir,
-                                "cannot tell the camera: the folder name contains none of "
-                                "freiburg1/2/3 or bonn, there is no camera.yaml in it, and no "
-                                "--config file sets camera.fx"));
+    throw InputError(file_error(source_path,
+                                "cannot tell the camera: the name contains none of "
+                                "freiburg1/2/3 or bonn, there is no camera.yaml (or camera_info) "
+                                "in it, and neither --camera-preset nor a --config file that "
+                                "sets camera.fx is given"));
   if (auto e = config.camera.check()) throw InputError(file_error(config.camera_source, *e));
   return config;
 }

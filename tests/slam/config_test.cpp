@@ -117,6 +117,45 @@ TEST(Config, CameraFromFolderNameCameraYamlAndSettings) {
   EXPECT_EQ(over.options.orb.num_features, 800);
 }
 
+TEST(Config, CameraOfASourcePresetEmbeddedSettingsCameraInfoAndSettingsFile) {
+  TempDir dir;
+  const std::string bag = (dir.path() / "rgbd_dataset_freiburg3_walking.bag").string();
+  // The file name chooses the preset, --camera-preset replaces it.
+  EXPECT_NEAR(resolve_run_config(bag, std::nullopt, {}, std::nullopt).camera.fx, 535.4, 1e-9);
+  EXPECT_NEAR(resolve_run_config(bag, std::nullopt, {}, "tum_fr1").camera.fx, 517.306408, 1e-9);
+  EXPECT_NE(message_of([&] {
+              resolve_run_config(bag, std::nullopt, {}, "kinect9");
+            }).find("--camera-preset: unknown preset 'kinect9'"),
+            std::string::npos);
+
+  // Embedded settings, then CameraInfo's intrinsics, then the settings file.
+  io::CameraHints hints;
+  hints.settings_yaml =
+      "camera:\n  fx: 500\n  fy: 500\n  cx: 160\n  cy: 120\n  width: 320\n"
+      "  height: 240\n  readout_time: 0.01\n";
+  hints.settings_name = "x.bag:/mcslam/camera_settings";
+  const std::string plain = (dir.path() / "x.bag").string();
+  const RunConfig embedded = resolve_run_config(plain, std::nullopt, hints, std::nullopt);
+  EXPECT_DOUBLE_EQ(embedded.camera.fx, 500.0);
+  EXPECT_DOUBLE_EQ(embedded.camera.readout_time, 0.01);
+  hints.intrinsics = io::CameraHints::Intrinsics{610.0, 611.0, 321.0, 241.0, 640, 480, {0.1}};
+  hints.intrinsics_name = "x.bag:/camera/color/camera_info";
+  const RunConfig info = resolve_run_config(plain, std::nullopt, hints, std::nullopt);
+  EXPECT_DOUBLE_EQ(info.camera.fy, 611.0);
+  EXPECT_EQ(info.camera.width, 640);
+  EXPECT_DOUBLE_EQ(info.camera.distortion[0], 0.1);
+  EXPECT_DOUBLE_EQ(info.camera.readout_time, 0.01);  // kept from the embedded settings
+  const auto settings = dir.write("fx.yaml", "camera:\n  fx: 600\n");
+  EXPECT_DOUBLE_EQ(resolve_run_config(plain, settings.string(), hints, std::nullopt).camera.fx,
+                   600.0);
+
+  // Nothing to go by: one error naming the source.
+  EXPECT_NE(message_of([&] {
+              resolve_run_config(plain, std::nullopt, {}, std::nullopt);
+            }).find(plain + ": cannot tell the camera"),
+            std::string::npos);
+}
+
 TEST(Config, EffectiveConfigLoadsBackUnchanged) {
   RunConfig config;
   config.camera.fx = 525;

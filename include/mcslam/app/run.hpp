@@ -2,16 +2,51 @@
 // `mcslam run`: a whole sequence through the SLAM system, with its outputs on disk.
 
 #include <functional>
+#include <memory>
 #include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
 #include <optional>
 #include <string>
 
+#include "mcslam/io/frame_source.hpp"
 #include "mcslam/slam/system.hpp"
 
 namespace mcslam::app {
 
+/// One frame of a live stream (a camera or the ROS node's topics).
+struct LiveFrame {
+  cv::Mat rgb;    ///< CV_8UC3 BGR
+  cv::Mat depth;  ///< CV_32FC1, metres
+  double rgb_timestamp = 0.0;
+  double depth_timestamp = 0.0;
+  std::size_t dropped_before = 0;  ///< frames the source dropped since the one before
+};
+
+/// A stream of frames whose number is not known ahead. next() blocks until a frame arrives and
+/// returns nullopt when the stream ends (the run then writes its outputs as for a sequence).
+class LiveSource {
+ public:
+  virtual ~LiveSource() = default;
+  virtual std::optional<LiveFrame> next() = 0;
+  /// A name for summary.json and messages, e.g. "ros:/camera/rgb/image_color".
+  virtual std::string describe() const = 0;
+  virtual io::CameraHints camera_hints() const { return {}; }
+};
+
 struct RunRequest {
+  /// A TUM-layout folder; ignored when `source` or `live` is set.
   std::string sequence_dir;
+  /// Frames from elsewhere (e.g. a ROS bag, ros::BagSource) instead of sequence_dir.
+  std::shared_ptr<const io::FrameSource> source;
+  /// A live stream instead (the ROS node); not with repeat > 1, realtime or max_frames.
+  std::shared_ptr<LiveSource> live;
+  /// Called on the run's thread after each frame with its result and images (the ROS node
+  /// publishes from here).
+  std::function<void(const slam::FrameResult&, const slam::PreparedImages&, slam::System&)>
+      on_frame;
+  /// The camera preset by name (--camera-preset: tum_fr1, tum_fr2, tum_fr3, bonn) instead of the
+  /// one chosen by the folder or file name.
+  std::optional<std::string> camera_preset;
   std::string output_dir;
   std::optional<std::string> config_path;
   std::optional<std::string> associations_path;

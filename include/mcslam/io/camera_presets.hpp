@@ -18,6 +18,10 @@ std::optional<PinholeCamera> camera_preset_for_sequence(const std::string& folde
 /// nullopt for an unknown name.
 std::optional<PinholeCamera> camera_preset(const std::string& preset_name);
 
+/// The camera in mcslam's settings keys (camera.fx, ..., readout_time), as a camera.yaml holds
+/// it; `comment` (one line) heads the text.
+std::string camera_settings_yaml(const PinholeCamera& camera, const std::string& comment);
+
 /// The names camera_preset() accepts.
 std::vector<std::string> camera_preset_names();
 

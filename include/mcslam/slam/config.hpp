@@ -8,6 +8,7 @@
 
 #include "mcslam/core/camera.hpp"
 #include "mcslam/io/config_file.hpp"
+#include "mcslam/io/frame_source.hpp"
 #include "mcslam/slam/options.hpp"
 
 namespace mcslam::slam {
@@ -28,6 +29,15 @@ void apply_config(io::ConfigFile& file, PinholeCamera& camera, SystemOptions& op
 /// Throws InputError when no camera can be determined or a file is invalid.
 RunConfig resolve_run_config(const std::string& sequence_dir,
                              const std::optional<std::string>& settings_path);
+/// The same for any source (a folder or a bag file): the preset named by `preset_name`
+/// (--camera-preset) or else chosen by the source's file or folder name, then camera.yaml in a
+/// folder, then the source's own settings and intrinsics (`hints`: a bag's embedded camera
+/// settings and its CameraInfo), then the user's settings file. Throws InputError for an unknown
+/// preset, invalid values, or when no camera can be determined.
+RunConfig resolve_run_config(const std::string& source_path,
+                             const std::optional<std::string>& settings_path,
+                             const io::CameraHints& hints,
+                             const std::optional<std::string>& preset_name);
 
 /// The effective configuration in mcslam's own YAML keys (it loads back with apply_config).
 std::string to_yaml(const RunConfig& config);

@@ -1,0 +1,23 @@
+#pragma once
+// sensor_msgs/Image <-> cv::Mat for the ROS module (private).
+
+#include <sensor_msgs/Image.h>
+
+#include <opencv2/core.hpp>
+#include <string>
+
+namespace mcslam::ros::detail {
+
+/// Colour image as 8-bit BGR (rgb8, bgr8, mono8, rgba8, bgra8). Throws InputError prefixed by
+/// `where` for another encoding or a message whose data is shorter than its size says.
+cv::Mat to_bgr(const sensor_msgs::Image& msg, const std::string& where);
+/// Depth in metres, CV_32FC1 (16UC1 millimetres, 32FC1 metres; NaN and inf become 0).
+cv::Mat to_depth_m(const sensor_msgs::Image& msg, const std::string& where);
+/// Checks encoding and data size only (what to_bgr / to_depth_m would throw).
+void check_image(const sensor_msgs::Image& msg, bool depth, const std::string& where);
+
+/// Fills msg (header left as is) from a CV_8UC3 BGR image ("bgr8" or "rgb8") or a CV_32FC1
+/// depth image in metres ("32FC1", or "16UC1" in millimetres).
+void fill_image(sensor_msgs::Image& msg, const cv::Mat& image, const std::string& encoding);
+
+}  // namespace mcslam::ros::detail
