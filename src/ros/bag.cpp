@@ -119,7 +119,7 @@ void BagSource::Impl::add_image(ImageTopic& topic, const rosbag::MessageInstance
   if (!msg)
     throw InputError(file_error(
         path, "topic '" + name + "' has type " + m.getDataType() + ", expected sensor_msgs/Image"));
-  const double stamp = msg->header.stamp.toSec();
+  const double stamp = detail::seconds_of(msg->header.stamp);
   detail::check_image(*msg, is_depth, where(name, k, stamp));
   if (k == 0) {
     topic.width = static_cast<int>(msg->width);
@@ -145,21 +145,21 @@ void BagSource::Impl::add_groundtruth(const rosbag::MessageInstance& m) {
     for (const auto& x : tf->transforms)
       if (strip_slash(x.header.frame_id) == strip_slash(t.world_frame) &&
           strip_slash(x.child_frame_id) == strip_slash(t.camera_frame))
-        groundtruth.push_back(
-            {x.header.stamp.toSec(), to_se3(x.transform.rotation, x.transform.translation.x,
-                                            x.transform.translation.y, x.transform.translation.z)});
+        groundtruth.push_back({detail::seconds_of(x.header.stamp),
+                               to_se3(x.transform.rotation, x.transform.translation.x,
+                                      x.transform.translation.y, x.transform.translation.z)});
   } else if (const auto p = m.instantiate<geometry_msgs::PoseStamped>()) {
     groundtruth.push_back(
-        {p->header.stamp.toSec(),
+        {detail::seconds_of(p->header.stamp),
          to_se3(p->pose.orientation, p->pose.position.x, p->pose.position.y, p->pose.position.z)});
   } else if (const auto x = m.instantiate<geometry_msgs::TransformStamped>()) {
-    groundtruth.push_back(
-        {x->header.stamp.toSec(), to_se3(x->transform.rotation, x->transform.translation.x,
-                                         x->transform.translation.y, x->transform.translation.z)});
+    groundtruth.push_back({detail::seconds_of(x->header.stamp),
+                           to_se3(x->transform.rotation, x->transform.translation.x,
+                                  x->transform.translation.y, x->transform.translation.z)});
   } else if (const auto o = m.instantiate<nav_msgs::Odometry>()) {
-    groundtruth.push_back(
-        {o->header.stamp.toSec(), to_se3(o->pose.pose.orientation, o->pose.pose.position.x,
-                                         o->pose.pose.position.y, o->pose.pose.position.z)});
+    groundtruth.push_back({detail::seconds_of(o->header.stamp),
+                           to_se3(o->pose.pose.orientation, o->pose.pose.position.x,
+                                  o->pose.pose.position.y, o->pose.pose.position.z)});
   } else if (!groundtruth_type_warned) {
     groundtruth_type_warned = true;
     warnings.push_back(file_error(path, "ground-truth topic '" + t.groundtruth + "' has type " +

@@ -1,12 +1,21 @@
 #include "convert.hpp"
 
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <opencv2/imgproc.hpp>
 
 #include "mcslam/core/error.hpp"
 
 namespace mcslam::ros::detail {
+
+double seconds_of(const ::ros::Time& stamp) {
+  char text[32];
+  std::snprintf(text, sizeof(text), "%u.%09u", stamp.sec, stamp.nsec);
+  return std::strtod(text, nullptr);
+}
+
 namespace {
 
 struct Layout {

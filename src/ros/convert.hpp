@@ -1,12 +1,19 @@
 #pragma once
 // sensor_msgs/Image <-> cv::Mat for the ROS module (private).
 
+#include <ros/time.h>
 #include <sensor_msgs/Image.h>
 
 #include <opencv2/core.hpp>
 #include <string>
 
 namespace mcslam::ros::detail {
+
+/// A stamp in seconds: the double nearest to its exact decimal value sec.nsec, as a TUM list's
+/// "1305031229.528748" reads. ros::Time::toSec() (sec + 1e-9 nsec) can be one ulp off that, and
+/// a run is not then the folder's bit for bit: the motion prediction scales with the frame's
+/// interval.
+double seconds_of(const ::ros::Time& stamp);
 
 /// Colour image as 8-bit BGR (rgb8, bgr8, mono8, rgba8, bgra8). Throws InputError prefixed by
 /// `where` for another encoding or a message whose data is shorter than its size says.

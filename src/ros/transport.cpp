@@ -39,8 +39,8 @@ struct Transport::Impl {
   void on_pair(const sensor_msgs::ImageConstPtr& rgb, const sensor_msgs::ImageConstPtr& depth) {
     try {
       TransportFrame frame;
-      frame.rgb_timestamp = rgb->header.stamp.toSec();
-      frame.depth_timestamp = depth->header.stamp.toSec();
+      frame.rgb_timestamp = detail::seconds_of(rgb->header.stamp);
+      frame.depth_timestamp = detail::seconds_of(depth->header.stamp);
       frame.rgb = to_bgr(*rgb, options.topics.rgb);
       frame.depth = to_depth_m(*depth, options.topics.depth);
       if (frame.depth.size() != frame.rgb.size())
