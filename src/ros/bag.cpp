@@ -215,24 +215,13 @@ void BagSource::Impl::scan() {
                                                   "reads: intrinsics not taken from it"));
           continue;
         }
-        if (info->K[0] > 0.0 && info->K[4] > 0.0) {
-          io::CameraHints::Intrinsics k;
-          k.fx = info->K[0];
-          k.fy = info->K[4];
-          k.cx = info->K[2];
-          k.cy = info->K[5];
-          k.width = static_cast<int>(info->width);
-          k.height = static_cast<int>(info->height);
-          if (info->distortion_model == "plumb_bob" ||
-              info->distortion_model == "rational_polynomial") {
-            for (std::size_t i = 0; i < 5 && i < info->D.size(); ++i) k.distortion[i] = info->D[i];
-          } else if (!info->distortion_model.empty() &&
-                     std::any_of(info->D.begin(), info->D.end(), [](double d) { return d != 0; })) {
+        bool ignored_distortion = false;
+        if (const auto k = detail::intrinsics_of(*info, &ignored_distortion)) {
+          if (ignored_distortion)
             warnings.push_back(file_error(path, "camera_info distortion model '" +
                                                     info->distortion_model +
                                                     "' is not plumb_bob: distortion ignored"));
-          }
-          hints.intrinsics = k;
+          hints.intrinsics = *k;
           hints.intrinsics_name = path + ":" + topic;
         }
       } else if (topic == t.settings) {

@@ -10,6 +10,25 @@
 
 namespace mcslam::ros::detail {
 
+std::optional<io::CameraHints::Intrinsics> intrinsics_of(const sensor_msgs::CameraInfo& info,
+                                                         bool* ignored_distortion) {
+  if (ignored_distortion) *ignored_distortion = false;
+  if (!(info.K[0] > 0.0 && info.K[4] > 0.0)) return std::nullopt;
+  io::CameraHints::Intrinsics k;
+  k.fx = info.K[0];
+  k.fy = info.K[4];
+  k.cx = info.K[2];
+  k.cy = info.K[5];
+  k.width = static_cast<int>(info.width);
+  k.height = static_cast<int>(info.height);
+  if (info.distortion_model == "plumb_bob" || info.distortion_model == "rational_polynomial") {
+    for (std::size_t i = 0; i < 5 && i < info.D.size(); ++i) k.distortion[i] = info.D[i];
+  } else if (ignored_distortion && !info.distortion_model.empty()) {
+    for (const double d : info.D) *ignored_distortion = *ignored_distortion || d != 0.0;
+  }
+  return k;
+}
+
 double seconds_of(const ::ros::Time& stamp) {
   char text[32];
   std::snprintf(text, sizeof(text), "%u.%09u", stamp.sec, stamp.nsec);

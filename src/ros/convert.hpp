@@ -2,10 +2,14 @@
 // sensor_msgs/Image <-> cv::Mat for the ROS module (private).
 
 #include <ros/time.h>
+#include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/Image.h>
 
 #include <opencv2/core.hpp>
+#include <optional>
 #include <string>
+
+#include "mcslam/io/frame_source.hpp"
 
 namespace mcslam::ros::detail {
 
@@ -22,6 +26,13 @@ cv::Mat to_bgr(const sensor_msgs::Image& msg, const std::string& where);
 cv::Mat to_depth_m(const sensor_msgs::Image& msg, const std::string& where);
 /// Checks encoding and data size only (what to_bgr / to_depth_m would throw).
 void check_image(const sensor_msgs::Image& msg, bool depth, const std::string& where);
+
+/// The intrinsics of a CameraInfo: K, the size and, for the plumb_bob and rational_polynomial
+/// models, the first five distortion coefficients (k1 k2 p1 p2 k3). Empty when K has no focal
+/// length. `ignored_distortion`, when given, tells whether another model had non-zero
+/// coefficients, which are then not used.
+std::optional<io::CameraHints::Intrinsics> intrinsics_of(const sensor_msgs::CameraInfo& info,
+                                                         bool* ignored_distortion = nullptr);
 
 /// Fills msg (header left as is) from a CV_8UC3 BGR image ("bgr8" or "rgb8") or a CV_32FC1
 /// depth image in metres ("32FC1", or "16UC1" in millimetres).

@@ -54,17 +54,7 @@ struct Transport::Impl {
     }
   }
   void on_info(const sensor_msgs::CameraInfoConstPtr& info) {
-    if (!(info->K[0] > 0.0 && info->K[4] > 0.0)) return;
-    io::CameraHints::Intrinsics k;
-    k.fx = info->K[0];
-    k.fy = info->K[4];
-    k.cx = info->K[2];
-    k.cy = info->K[5];
-    k.width = static_cast<int>(info->width);
-    k.height = static_cast<int>(info->height);
-    if (info->distortion_model == "plumb_bob" || info->distortion_model == "rational_polynomial")
-      for (std::size_t i = 0; i < 5 && i < info->D.size(); ++i) k.distortion[i] = info->D[i];
-    callbacks.camera_info(k, options.topics.camera_info);
+    if (const auto k = intrinsics_of(*info)) callbacks.camera_info(*k, options.topics.camera_info);
   }
 };
 
