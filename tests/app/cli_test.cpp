@@ -266,9 +266,9 @@ TEST(CliRun, ReadoutAutoRunsTheCalibrationPass) {
   const fs::path config = root() / "readout_auto.yaml";
   write_file(config, "camera:\n  readout_time: auto\n");
   const fs::path out = root() / "o_readout_auto";
-  const CliResult r = run_cli("run " + quote(small_sequence().string()) + " --output " +
-                              quote(out.string()) + " --config " + quote(config.string()) +
-                              " --sequential -q");
+  const CliResult r =
+      run_cli("run " + quote(small_sequence().string()) + " --output " + quote(out.string()) +
+              " --config " + quote(config.string()) + " --sequential -q");
   ASSERT_EQ(r.exit_code, 0) << r;
   const nlohmann::json readout = read_json(out / "summary.json")["readout"];
   EXPECT_EQ(readout["mode"], "auto");
