@@ -47,6 +47,17 @@ void FrameFeed::read() {
       if (!options_.realtime)
         changed_.wait(lock, [&] { return stop_ || ready_.size() < options_.lookahead; });
       if (stop_) break;
+      // A camera never falls behind its clock: when the reader itself is late (its thread got
+      // too little CPU), frames whose successor is already due are dropped unread, so that the
+      // loop gets the newest frame and not a backlog.
+      if (options_.realtime && start_) {
+        const double now = clock_s();
+        while (k + 1 < timestamps_.size() && timestamps_[k + 1] - timestamps_.front() <= now) {
+          dropped_.push_back(k);
+          ++k;
+        }
+        slot.index = k;
+      }
     }
     try {
       slot.images = load_(k);

@@ -88,9 +88,38 @@ TEST(FrameFeed, RealTimeDropsWhatASlowLoopMisses) {
   for (std::size_t k = 0; k < 30; ++k) EXPECT_TRUE(seen[k]) << "frame " << k << " lost";
 }
 
+TEST(FrameFeed, RealTimeReaderSlowerThanTheCameraSkipsAheadInsteadOfFallingBehind) {
+  // Frames 10 ms apart and a reader that needs 30 ms to prepare one (its thread starved of
+  // CPU): a camera never falls behind its clock, so every frame the loop gets is at most about
+  // one preparation late. Reading every frame in turn would deliver frame 39 some 0.8 s late.
+  const FrameFeed::Loader slow = [](std::size_t k) {
+    std::this_thread::sleep_for(milliseconds(30));
+    slam::PreparedImages images;
+    images.prepare_ms = static_cast<double>(k);
+    return images;
+  };
+  FrameFeed feed(slow, stamps(40, 0.01), FeedOptions{true, 2});
+  std::size_t taken = 0, reported_drops = 0, last = 0;
+  double worst_late_s = 0.0;
+  while (auto f = feed.next()) {
+    EXPECT_EQ(f->images.prepare_ms, static_cast<double>(f->index)) << "images of another frame";
+    worst_late_s = std::max(worst_late_s, f->ready_s - f->due_s);
+    reported_drops += f->dropped_before;
+    last = f->index;
+    ++taken;
+  }
+  EXPECT_LT(worst_late_s, 0.15);
+  EXPECT_EQ(last, 39u) << "the last frame is never dropped";
+  EXPECT_GE(feed.dropped().size(), 20u);
+  EXPECT_EQ(reported_drops, feed.dropped().size());
+  EXPECT_EQ(taken + feed.dropped().size(), 40u);
+}
+
 TEST(FrameFeed, LoaderErrorsReachTheLoopAtTheirFrame) {
   for (const bool realtime : {false, true}) {
-    FrameFeed feed(counting_loader(3), stamps(10, 0.001), FeedOptions{realtime, 2});
+    // 50 ms apart: a real-time reader drops unread a frame whose successor is already due, and
+    // it must not be that late here.
+    FrameFeed feed(counting_loader(3), stamps(10, 0.05), FeedOptions{realtime, 2});
     std::size_t last = 0;
     bool thrown = false;
     try {
