@@ -224,6 +224,11 @@ int main(int argc, char** argv) {
                       "TUM associate.py output to use instead of timestamp association");
   run_cmd->add_option("--max-frames", run.max_frames, "Process at most N frames")
       ->check(CLI::NonNegativeNumber);
+  run_cmd
+      ->add_option("--first-frame", run.first_frame,
+                   "Start at frame N of the sequence (0-based), as if the recording began "
+                   "there")
+      ->check(CLI::NonNegativeNumber);
   run_cmd->add_flag("--sequential", sequential, "Map inline after each keyframe (deterministic)");
   run_cmd->add_flag("--threaded", threaded, "Map on its own thread (the default)");
   run_cmd->add_flag("--save-map", run.save_map,

@@ -11,6 +11,7 @@
 #include <iomanip>
 #include <iostream>
 #include <map>
+#include <opencv2/core/utility.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <sstream>
@@ -329,6 +330,7 @@ struct StreamPlan {
   std::vector<io::FrameEntry> frames;
   int passes = 1;
   std::size_t frames_per_pass = 0;
+  std::size_t first_index = 0;     // the source's index of frames[0] (--first-frame)
   double first = 0.0, last = 0.0;  // RGB timestamps of the sequence's first and last frames
   double gap = 0.0;                // median time between frames
   double period = 0.0;             // last - first + gap: pass k starts at first + k * period
@@ -338,7 +340,8 @@ struct StreamPlan {
 io::RgbdImages load_checked(const io::FrameSource& source, const StreamPlan& plan, std::size_t k,
                             const PinholeCamera& camera) {
   const io::FrameEntry& entry = plan.frames[k];
-  io::RgbdImages raw = source.load(k % plan.frames_per_pass, camera.depth_factor);
+  io::RgbdImages raw =
+      source.load(plan.first_index + k % plan.frames_per_pass, camera.depth_factor);
   if (raw.rgb.cols != camera.width || raw.rgb.rows != camera.height)
     throw InputError(file_error(
         entry.rgb_path, "image is " + std::to_string(raw.rgb.cols) + "x" +
@@ -347,9 +350,12 @@ io::RgbdImages load_checked(const io::FrameSource& source, const StreamPlan& pla
   return raw;
 }
 
-StreamPlan plan_stream(const std::vector<io::FrameEntry>& frames, int passes) {
+StreamPlan plan_stream(std::vector<io::FrameEntry> frames, int passes, std::size_t first_index) {
   StreamPlan plan;
   plan.passes = passes;
+  plan.first_index = first_index;
+  frames.erase(frames.begin(),
+               frames.begin() + static_cast<std::ptrdiff_t>(std::min(first_index, frames.size())));
   plan.frames_per_pass = frames.size();
   if (frames.empty()) return plan;  // a live stream
   plan.first = frames.front().rgb_timestamp;
@@ -909,8 +915,11 @@ nlohmann::json run_sequence(const RunRequest& request) {
   if (request.repeat < 1) throw InputError("--repeat: must be at least 1");
   if (request.realtime && request.repeat > 1)
     throw InputError("--realtime: not with --repeat (a soak run plays frames as fast as it can)");
-  if (request.live && (request.realtime || request.repeat > 1 || request.max_frames > 0))
-    throw InputError("a live stream runs without --realtime, --repeat and --max-frames");
+  if (request.live &&
+      (request.realtime || request.repeat > 1 || request.max_frames > 0 || request.first_frame > 0))
+    throw InputError(
+        "a live stream runs without --realtime, --repeat, --max-frames and --first-frame");
+  if (request.first_frame < 0) throw InputError("--first-frame: must be at least 0");
   std::shared_ptr<const io::FrameSource> source = request.source;
   if (!source && !request.live) {
     io::SequenceOptions seq_options;
@@ -939,8 +948,14 @@ nlohmann::json run_sequence(const RunRequest& request) {
   const fs::path out(request.output_dir);
   io::write_file_atomic((out / "config.yaml").string(), slam::to_yaml(config));
 
+  const std::vector<io::FrameEntry> entries =
+      source ? source->frames() : std::vector<io::FrameEntry>{};
+  if (request.first_frame > 0 && static_cast<std::size_t>(request.first_frame) >= entries.size())
+    throw InputError(source_path + ": --first-frame " + std::to_string(request.first_frame) +
+                     " is past the sequence's last frame (it has " +
+                     std::to_string(entries.size()) + ")");
   const StreamPlan plan =
-      plan_stream(source ? source->frames() : std::vector<io::FrameEntry>{}, request.repeat);
+      plan_stream(entries, request.repeat, static_cast<std::size_t>(request.first_frame));
   // Ground truth is read before the run so that a broken file is reported at once.
   std::optional<Trajectory> groundtruth = source ? source->groundtruth() : std::nullopt;
   if (groundtruth) {
@@ -948,6 +963,8 @@ nlohmann::json run_sequence(const RunRequest& request) {
     if (request.repeat > 1) groundtruth = repeat_groundtruth(*groundtruth, plan);
   }
 
+  // OpenCV's thread pool is process-wide: the application sets it (SystemOptions).
+  if (config.options.opencv_threads > 0) cv::setNumThreads(config.options.opencv_threads);
   if (request.no_dynamics) config.options.tracker.dynamics.enabled = false;
   if (request.no_constraints) config.options.tracker.dynamics.constraints = false;
   std::unique_ptr<map::Map> initial_map;

@@ -332,6 +332,28 @@ TEST(CliRun, FeatureSwitches) {
   EXPECT_NE(bad.err.find("curves"), std::string::npos) << bad;
 }
 
+TEST(CliRun, FirstFrameStartsTheRunThere) {
+  // --first-frame 25 of 40: the run covers frames 25..39, as a recording that began there; its
+  // first pose is stamped with frame 25's time and the ground truth is scored on those frames.
+  const fs::path out = root() / "out_first_frame";
+  const CliResult r = run_cli("run " + quote(main_sequence().string()) + " --output " +
+                              quote(out.string()) + " --sequential --first-frame 25 -q");
+  ASSERT_EQ(r.exit_code, 0) << r;
+  const nlohmann::json summary = read_json(out / "summary.json");
+  EXPECT_EQ(summary["frames"].get<int>(), 15);
+  const std::vector<double> rgb = timestamps_of(main_sequence() / "rgb.txt");
+  const std::vector<double> poses = timestamps_of(out / "trajectory.txt");
+  ASSERT_FALSE(poses.empty());
+  EXPECT_NEAR(poses.front(), rgb[25], 1e-6);
+  EXPECT_EQ(summary["eval"]["matched"].get<int>(), static_cast<int>(poses.size()));
+
+  const CliResult past =
+      run_cli("run " + quote(main_sequence().string()) + " --output " +
+              quote((root() / "out_first_frame_past").string()) + " --first-frame 40 -q");
+  EXPECT_EQ(past.exit_code, 1) << past;
+  EXPECT_NE(past.err.find("--first-frame 40"), std::string::npos) << past;
+}
+
 TEST(CliRun, EffectiveConfigLoadsBackAndSequentialRunIsDeterministic) {
   const MainRun& run = main_run();
   ASSERT_EQ(run.result.exit_code, 0) << run.result;

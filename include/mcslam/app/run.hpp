@@ -54,6 +54,9 @@ struct RunRequest {
   std::optional<bool> sequential;
   /// Process at most this many frames (0: all).
   int max_frames = 0;
+  /// Start at this frame of the sequence (0: the first), as if the recording began there: the
+  /// run, its ground truth scoring and its outputs cover frames first_frame onwards.
+  int first_frame = 0;
   /// Progress bar on stderr.
   bool progress = false;
   /// Also write map.ply and map.json (see map/export.hpp).
