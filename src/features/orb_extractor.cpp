@@ -280,6 +280,7 @@ std::optional<std::string> OrbOptions::check() const {
   if (fast_threshold < 1 || fast_threshold > 254) return "orb.fast_threshold must be in [1, 254]";
   if (min_fast_threshold < 1 || min_fast_threshold > fast_threshold)
     return "orb.min_fast_threshold must be in [1, orb.fast_threshold]";
+  if (!(moving_share >= 0.0 && moving_share <= 1.0)) return "orb.moving_share must be in [0, 1]";
   return std::nullopt;
 }
 
@@ -319,7 +320,36 @@ OrbExtractor::OrbExtractor(const OrbOptions& options) : options_(options) {
   }
 }
 
-OrbFeatures OrbExtractor::extract(const cv::Mat& gray) const {
+namespace {
+
+/// Keeps `quota` of a level's candidates spread evenly by distribute(), at most
+/// round(share * quota) of them inside the `moving` regions (level pixels) and the rest outside;
+/// a side with fewer corners than its part hands the remainder to the other side.
+std::vector<Candidate> distribute_split(const std::vector<Candidate>& cands,
+                                        const std::vector<cv::Rect2f>& moving, double share,
+                                        float x0, float y0, float x1, float y1, int quota) {
+  if (moving.empty() || share >= 1.0) return distribute(cands, x0, y0, x1, y1, quota);
+  std::vector<Candidate> inside, outside;
+  for (const Candidate& c : cands) {
+    const cv::Point2f p(static_cast<float>(c.x), static_cast<float>(c.y));
+    const bool in = std::any_of(moving.begin(), moving.end(),
+                                [&](const cv::Rect2f& r) { return r.contains(p); });
+    (in ? inside : outside).push_back(c);
+  }
+  const int cap = static_cast<int>(std::lround(share * quota));
+  int in_quota = std::min(static_cast<int>(inside.size()), cap);
+  const int out_quota = std::min(static_cast<int>(outside.size()), quota - in_quota);
+  in_quota = std::min(static_cast<int>(inside.size()), quota - out_quota);
+  std::vector<Candidate> kept = distribute(outside, x0, y0, x1, y1, out_quota);
+  const std::vector<Candidate> in_kept = distribute(inside, x0, y0, x1, y1, in_quota);
+  kept.insert(kept.end(), in_kept.begin(), in_kept.end());
+  return kept;
+}
+
+}  // namespace
+
+OrbFeatures OrbExtractor::extract(const cv::Mat& gray,
+                                  const std::vector<cv::Rect2f>& moving) const {
   OrbFeatures result;
   if (gray.empty() || gray.type() != CV_8UC1) return result;
   const int num_levels = options_.num_levels;
@@ -393,9 +423,16 @@ OrbFeatures OrbExtractor::extract(const cv::Mat& gray) const {
   parallel_for(0, used_levels, [&](int first, int last) {
     for (int l = first; l < last; ++l) {
       Level& level = levels[static_cast<std::size_t>(l)];
-      const std::vector<Candidate> kept = distribute(
-          level.candidates, float(kBorder), float(kBorder), float(level.image.cols - kBorder),
-          float(level.image.rows - kBorder), level.quota);
+      // The moving regions in this level's pixels (x0 = ax * x + bx).
+      std::vector<cv::Rect2f> moving_here;
+      for (const cv::Rect2f& r : moving)
+        moving_here.emplace_back(static_cast<float>((r.x - level.bx) / level.ax),
+                                 static_cast<float>((r.y - level.by) / level.ay),
+                                 static_cast<float>(r.width / level.ax),
+                                 static_cast<float>(r.height / level.ay));
+      const std::vector<Candidate> kept = distribute_split(
+          level.candidates, moving_here, options_.moving_share, float(kBorder), float(kBorder),
+          float(level.image.cols - kBorder), float(level.image.rows - kBorder), level.quota);
       if (kept.empty()) continue;
       const std::ptrdiff_t step = static_cast<std::ptrdiff_t>(level.image.step[0]);
       level.keypoints.resize(kept.size());

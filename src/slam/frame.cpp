@@ -91,7 +91,7 @@ void FrameBuilder::build_points(const cv::Mat& gray, const cv::Mat& depth,
   const SE3 T_rgb_d = compensate ? *motion.T_rgb_depth : SE3();
   const SE3 T_d_rgb = T_rgb_d.inverse();
   const bool rolling_shutter = rolling(motion);
-  features::OrbFeatures orb = orb_.extract(gray);
+  features::OrbFeatures orb = orb_.extract(gray, motion.moving_regions);
   out.points.resize(orb.keypoints.size());
   for (std::size_t i = 0; i < orb.keypoints.size(); ++i) {
     features::PointFeature& p = out.points[i];

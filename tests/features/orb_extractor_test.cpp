@@ -407,5 +407,34 @@ TEST(OrbExtractor, RealImageCountMatchesAndTiming) {
               orb.options().num_features, median(times));
 }
 
+TEST(OrbExtractor, MovingRegionsGetAtMostTheirShareOfTheFeatures) {
+  // A uniformly textured image whose left three quarters are declared moving (people filling
+  // the view): spread evenly, about three quarters of the features would land there; with the
+  // limit, at most moving_share of them do, and the budget goes to the static quarter.
+  const cv::Mat img = synthetic_image(640, 480, 11);
+  const std::vector<cv::Rect2f> moving{cv::Rect2f(0.f, 0.f, 480.f, 480.f)};
+  const auto inside = [&](const OrbFeatures& f) {
+    int n = 0;
+    for (const Keypoint& kp : f.keypoints) n += kp.uv.x() < 480.f ? 1 : 0;
+    return n;
+  };
+  OrbOptions options;
+  options.moving_share = 1.0;
+  const OrbFeatures even = OrbExtractor(options).extract(img, moving);
+  options.moving_share = 0.25;
+  const OrbFeatures limited = OrbExtractor(options).extract(img, moving);
+  const OrbFeatures none = OrbExtractor(options).extract(img);
+  ASSERT_GT(even.size(), 900u);
+  EXPECT_GT(inside(even), static_cast<int>(0.6 * even.size()));
+  EXPECT_EQ(inside(none), inside(even)) << "no regions: the same spread as no limit";
+  // Each level rounds its own share: allow a feature per level.
+  EXPECT_LE(inside(limited), static_cast<int>(0.25 * limited.size()) + options.num_levels);
+  EXPECT_GT(inside(limited), static_cast<int>(0.15 * limited.size())) << "movers keep a share";
+  EXPECT_GE(limited.size(), even.size() - 20) << "the budget moves, it is not lost";
+  EXPECT_GT(limited.size() - inside(limited), 2 * (even.size() - inside(even)));
+  options.moving_share = 1.5;
+  EXPECT_THROW(OrbExtractor{options}, InputError);
+}
+
 }  // namespace
 }  // namespace mcslam::features

@@ -46,6 +46,10 @@ struct FrameMotion {
   /// middle row's time.
   Eigen::Vector3d angular_velocity = Eigen::Vector3d::Zero();
   double readout_time = 0.0;
+  /// Where moving objects are expected in this image (undistorted pixels): the regions of the
+  /// previous frame's moving objects, grown by their possible motion. ORB keeps at most
+  /// orb.moving_share of its features there (features::OrbExtractor::extract).
+  std::vector<cv::Rect2f> moving_regions;
 };
 
 /// Extracts the feature kinds switched on in the options (ORB points with their depth and
