@@ -53,6 +53,7 @@ std::vector<Field> mcslam_fields(PinholeCamera& c, SystemOptions& o) {
       {"orb.scale_factor", &o.orb.scale_factor},
       {"orb.fast_threshold", &o.orb.fast_threshold},
       {"orb.min_fast_threshold", &o.orb.min_fast_threshold},
+      {"orb.moving_share", &o.orb.moving_share},
       {"lines.detector", &o.lines.detector},
       {"lines.min_length", &o.lines.min_length},
       {"lines.max_lines", &o.lines.max_lines},
@@ -192,6 +193,8 @@ std::vector<Field> mcslam_fields(PinholeCamera& c, SystemOptions& o) {
       {"system.detection_interval", &o.detection_interval},
       {"system.background_niceness", &o.background_niceness},
       {"system.detector_niceness", &o.detector_niceness},
+      {"system.opencv_threads", &o.opencv_threads},
+      {"system.cold_start_keyframes", &o.cold_start_keyframes},
   };
 }
 

@@ -11,7 +11,7 @@ namespace mcslam::slam {
 FileDetectionSource::FileDetectionSource(perception::DetectionsFile file, std::string path)
     : file_(std::move(file)), path_(std::move(path)) {}
 
-void FileDetectionSource::submit(std::uint64_t frame_id, double timestamp, const cv::Mat&) {
+void FileDetectionSource::submit(std::uint64_t frame_id, double timestamp, const cv::Mat&, bool) {
   if (const perception::FrameDetections* f = file_.find(timestamp))
     newest_ = TimedDetections{frame_id, f->detections, 0.0};
 }
@@ -40,12 +40,15 @@ ModelDetectionSource::~ModelDetectionSource() {
   worker_.join();
 }
 
-void ModelDetectionSource::submit(std::uint64_t frame_id, double, const cv::Mat& bgr) {
+void ModelDetectionSource::submit(std::uint64_t frame_id, double, const cv::Mat& bgr,
+                                  bool required) {
   {
     std::lock_guard<std::mutex> lock(mutex_);
-    if (job_ || running_) return;  // busy: this frame is skipped
-    if (last_submitted_ && frame_id < *last_submitted_ + static_cast<std::uint64_t>(interval_))
-      return;  // not yet due
+    if (!required) {
+      if (job_ || running_) return;  // busy: this frame is skipped
+      if (last_submitted_ && frame_id < *last_submitted_ + static_cast<std::uint64_t>(interval_))
+        return;  // not yet due
+    }
     last_submitted_ = frame_id;
     job_.emplace(frame_id, bgr);
   }

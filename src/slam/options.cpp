@@ -74,6 +74,10 @@ std::optional<std::string> SystemOptions::check() const {
     return "system.background_niceness must be in [0, 19]";
   if (detector_niceness < 0 || detector_niceness > 19)
     return "system.detector_niceness must be in [0, 19]";
+  if (opencv_threads < 0 || opencv_threads > 256)
+    return "system.opencv_threads must be in [0, 256] (0: OpenCV's default)";
+  if (cold_start_keyframes < 0 || cold_start_keyframes > 1000)
+    return "system.cold_start_keyframes must be in [0, 1000]";
   if (auto e = orb.check()) return e;
   if (auto e = lines.check()) return e;
   if (auto e = planes.check()) return e;

@@ -19,6 +19,7 @@ System::System(const PinholeCamera& camera, const SystemOptions& options,
   if (options_.localize && !initial_map)
     throw InputError("options: localize needs a map made earlier (--load-session)");
   const bool from_map = initial_map != nullptr;
+  started_in_map_ = from_map;
   if (options_.localize) options_.place.loop.enabled = false;
   undistorter_ = std::make_unique<io::Undistorter>(camera_);
   builder_ = std::make_unique<FrameBuilder>(camera_, options_);
@@ -151,8 +152,12 @@ FrameResult System::process(const PreparedImages& images, double timestamp,
   }
   if (images.prepare_ms >= 0.0) result.times.add_concurrent("prepare", images.prepare_ms);
 
-  // The detector starts on this image now and runs while the features are extracted.
-  if (detections_ && rgb.channels() == 3) detections_->submit(result.frame_id, timestamp, rgb);
+  // The detector starts on this image now and runs while the features are extracted. While the
+  // first map is built (cold start), the frame waits for its own boxes.
+  const bool cold_start = !started_in_map_ && keyframes_made_ < options_.cold_start_keyframes;
+  const bool wait_for_boxes = wait_for_detections_ || options_.sequential || cold_start;
+  if (detections_ && rgb.channels() == 3)
+    detections_->submit(result.frame_id, timestamp, rgb, wait_for_boxes);
 
   Stopwatch watch;
   const cv::Mat& gray = images.gray;
@@ -169,12 +174,12 @@ FrameResult System::process(const PreparedImages& images, double timestamp,
     motion.angular_velocity = tracker_->angular_velocity();
   }
   result.readout_time = readout;
+  motion.moving_regions = expected_moving_regions(timestamp);
   Frame frame =
       builder_->build(result.frame_id, timestamp, gray, undistorted_depth, motion, &result.times);
   if (detections_) {
     watch.restart();
-    const bool wait = wait_for_detections_ || options_.sequential;
-    if (auto found = detections_->collect(result.frame_id, wait)) {
+    if (auto found = detections_->collect(result.frame_id, wait_for_boxes)) {
       auto objects = std::make_shared<FrameObjects>();
       objects->boxes = undistort_boxes(camera_, std::move(found->boxes));
       objects->fresh = found->frame_id == result.frame_id;
@@ -213,6 +218,7 @@ FrameResult System::process(const PreparedImages& images, double timestamp,
   result.stale_iou = outcome.objects.stale_iou;
   result.mover_regions = outcome.objects.mover_regions;
   result.mover_points = outcome.objects.mover_points;
+  remember_moving_regions(result);
   if (readout_) {
     if (outcome.state == TrackingState::kOk) {
       ReadoutFrame observed;
@@ -242,6 +248,7 @@ FrameResult System::process(const PreparedImages& images, double timestamp,
   }
   if (outcome.keyframe) {
     result.keyframe = true;
+    ++keyframes_made_;
     // New points take their colour from the keyframe's image (for the saved map).
     if (rgb.channels() == 3) outcome.keyframe->color = undistorter_->apply_rgb(rgb);
     if (sequential) {
@@ -254,6 +261,26 @@ FrameResult System::process(const PreparedImages& images, double timestamp,
   }
   records_.push_back(record);
   return result;
+}
+
+void System::remember_moving_regions(const FrameResult& result) {
+  moving_regions_.clear();
+  moving_regions_time_ = result.timestamp;
+  for (const ObjectReport& o : result.objects)
+    if (o.state == ObjectState::kDynamic) moving_regions_.push_back(o.detection.box);
+}
+
+std::vector<cv::Rect2f> System::expected_moving_regions(double timestamp) const {
+  // A person walks at up to ~1.4 m/s; at 1 m from the camera that moves their image by
+  // fx * 1.4 * dt pixels, which bounds where the previous frame's moving objects can be now.
+  constexpr double kWalkingSpeed = 1.4;  // m/s
+  constexpr double kNearDepth = 1.0;     // m
+  const double dt = std::clamp(timestamp - moving_regions_time_, 0.0, 1.0);
+  const auto margin = static_cast<float>(camera_.fx * kWalkingSpeed * dt / kNearDepth);
+  std::vector<cv::Rect2f> out;
+  for (const cv::Rect2f& r : moving_regions_)
+    out.emplace_back(r.x - margin, r.y - margin, r.width + 2 * margin, r.height + 2 * margin);
+  return out;
 }
 
 void System::finish() {

@@ -8,6 +8,7 @@
 #include <memory>
 
 #include "mcslam/eval/metrics.hpp"
+#include "mcslam/slam/detection_source.hpp"
 #include "mcslam/slam/system.hpp"
 #include "mcslam/synth/objects.hpp"
 #include "mcslam/synth/sequence.hpp"
@@ -128,6 +129,70 @@ TEST(DynamicSlam, ExcludingMoversBeatsGeometryAlone) {
   EXPECT_EQ(full.tracked, static_cast<int>(scene().frames.size()));
   EXPECT_LT(full.ate, 0.01);
   EXPECT_LT(full.ate, 0.25 * geometry.ate) << "geometry " << geometry.ate << " full " << full.ate;
+}
+
+/// A detector that lags behind the frames, deterministically: a frame that waits for its own
+/// boxes (submitted as required) gets them; any other frame gets those of the frame `lag`
+/// frames earlier, as a busy detector on its own thread gives them.
+class LaggingDetections final : public slam::DetectionSource {
+ public:
+  LaggingDetections(const perception::DetectionsFile& file, std::uint64_t lag)
+      : file_(file), lag_(lag) {}
+  void submit(std::uint64_t frame_id, double timestamp, const cv::Mat&, bool required) override {
+    stamps_[frame_id] = timestamp;
+    required_[frame_id] = required;
+  }
+  std::optional<slam::TimedDetections> collect(std::uint64_t frame_id, bool wait) override {
+    std::uint64_t source = frame_id;
+    if (!(wait && required_[frame_id])) {
+      if (frame_id < lag_) return std::nullopt;
+      source = frame_id - lag_;
+    }
+    const perception::FrameDetections* f = file_.find(stamps_.at(source));
+    if (!f) return std::nullopt;
+    return slam::TimedDetections{source, f->detections, 0.0};
+  }
+  std::string describe() const override { return "lagging oracle"; }
+
+ private:
+  const perception::DetectionsFile& file_;
+  std::uint64_t lag_;
+  std::map<std::uint64_t, double> stamps_;
+  std::map<std::uint64_t, bool> required_;
+};
+
+TEST(DynamicSlam, ColdStartWaitsForFreshBoxesUntilTheFirstKeyframesAreMade) {
+  // People in view from the first frame: until the map holds cold_start_keyframes keyframes,
+  // each frame waits for its own boxes; after that a busy detector's boxes (3 frames old) are
+  // used. With the cold start off, the first frames have no boxes at all.
+  const DynamicScene& s = scene();
+  for (const int cold_start : {3, 0}) {
+    slam::SystemOptions options;
+    options.sequential = false;
+    options.cold_start_keyframes = cold_start;
+    slam::System system(s.camera, options);
+    system.set_detection_source(std::make_unique<LaggingDetections>(s.detections, 3), false);
+    int keyframes = 0, fresh_while_cold = 0, cold_frames = 0, aged = 0;
+    for (std::size_t i = 0; i < 120; ++i) {
+      const slam::FrameResult r =
+          system.process(s.frames[i].rgb, s.frames[i].depth, s.groundtruth[i].timestamp);
+      if (keyframes < 3) {
+        ++cold_frames;
+        fresh_while_cold += r.detections_used && r.detections_fresh ? 1 : 0;
+      } else {
+        aged += r.detections_used && r.detections_age == 3 ? 1 : 0;
+      }
+      keyframes += r.keyframe ? 1 : 0;
+    }
+    system.finish();
+    ASSERT_GE(keyframes, 4) << "the scene should make keyframes";
+    if (cold_start > 0) {
+      EXPECT_EQ(fresh_while_cold, cold_frames);
+      EXPECT_GT(aged, 0) << "after the cold start, frames no longer wait";
+    } else {
+      EXPECT_EQ(fresh_while_cold, 0);
+    }
+  }
 }
 
 }  // namespace

@@ -33,7 +33,11 @@ class DetectionSource {
  public:
   virtual ~DetectionSource() = default;
   /// Frame `frame_id` has arrived (raw BGR image, not modified by the caller afterwards).
-  virtual void submit(std::uint64_t frame_id, double timestamp, const cv::Mat& bgr) = 0;
+  /// `required`: the frame will wait for its own boxes (collect with `wait`), so it is detected
+  /// even when the detector is busy or the frame is not due: it then replaces any frame still
+  /// queued and runs next.
+  virtual void submit(std::uint64_t frame_id, double timestamp, const cv::Mat& bgr,
+                      bool required = false) = 0;
   /// The newest boxes for frame `frame_id` (see the header comment); nullopt when none exist
   /// yet. With `wait`, blocks until the frame's own detection (if submitted) is finished.
   virtual std::optional<TimedDetections> collect(std::uint64_t frame_id, bool wait) = 0;
@@ -49,7 +53,8 @@ class DetectionSource {
 class FileDetectionSource final : public DetectionSource {
  public:
   FileDetectionSource(perception::DetectionsFile file, std::string path);
-  void submit(std::uint64_t frame_id, double timestamp, const cv::Mat& bgr) override;
+  void submit(std::uint64_t frame_id, double timestamp, const cv::Mat& bgr,
+              bool required = false) override;
   std::optional<TimedDetections> collect(std::uint64_t frame_id, bool wait) override;
   std::string describe() const override;
 
@@ -70,7 +75,8 @@ class ModelDetectionSource final : public DetectionSource {
   ModelDetectionSource(const ModelDetectionSource&) = delete;
   ModelDetectionSource& operator=(const ModelDetectionSource&) = delete;
 
-  void submit(std::uint64_t frame_id, double timestamp, const cv::Mat& bgr) override;
+  void submit(std::uint64_t frame_id, double timestamp, const cv::Mat& bgr,
+              bool required = false) override;
   std::optional<TimedDetections> collect(std::uint64_t frame_id, bool wait) override;
   std::string describe() const override;
   std::vector<double> pass_times_ms() const override;

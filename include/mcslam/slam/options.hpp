@@ -203,6 +203,17 @@ struct SystemOptions {
   /// the CPU leaves it, and boxes are carried between its detections (dynamics.propagate_boxes).
   /// OpenCV's own worker threads, which run most of a forward pass, keep their priority.
   int detector_niceness = 0;
+  /// Threads that OpenCV's own parallel loops may use (cv::setNumThreads, process-wide: the
+  /// application applies it at start, the library never does). mcslam runs its stages on
+  /// threads of its own (reader, ORB / lines / planes, detector, mapper); OpenCV's pool on top
+  /// of them makes the detector's forward pass spread over every core and hold the frame's
+  /// threads back. 1: each OpenCV call runs on the thread that makes it; 0: OpenCV's default
+  /// (one worker per core).
+  int opencv_threads = 1;
+  /// With a detector model, frames wait for their own boxes (as with --wait-detections) until
+  /// the map holds this many keyframes: the first map is built from fresh boxes, so that people
+  /// in view from the first frame are not mapped as static. 0: never.
+  int cold_start_keyframes = 5;
 
   std::optional<std::string> check() const;
 };
