@@ -280,7 +280,8 @@ std::optional<std::string> OrbOptions::check() const {
   if (fast_threshold < 1 || fast_threshold > 254) return "orb.fast_threshold must be in [1, 254]";
   if (min_fast_threshold < 1 || min_fast_threshold > fast_threshold)
     return "orb.min_fast_threshold must be in [1, orb.fast_threshold]";
-  if (!(moving_share >= 0.0 && moving_share <= 1.0)) return "orb.moving_share must be in [0, 1]";
+  if (!(moving_density >= 0.0 && moving_density <= 1000.0))
+    return "orb.moving_density must be in [0, 1000] (0: no limit)";
   return std::nullopt;
 }
 
@@ -323,18 +324,17 @@ OrbExtractor::OrbExtractor(const OrbOptions& options) : options_(options) {
 namespace {
 
 /// Keeps `quota` of a level's candidates spread evenly by distribute(), at most
-/// round(share * quota) of them inside the `moving` regions (level pixels) and the rest outside;
+/// round(share * quota) of them where `moving` (a level-0 mask) is set and the rest elsewhere;
 /// a side with fewer corners than its part hands the remainder to the other side.
-std::vector<Candidate> distribute_split(const std::vector<Candidate>& cands,
-                                        const std::vector<cv::Rect2f>& moving, double share,
+std::vector<Candidate> distribute_split(const std::vector<Candidate>& cands, const cv::Mat& moving,
+                                        double ax, double bx, double ay, double by, double share,
                                         float x0, float y0, float x1, float y1, int quota) {
   if (moving.empty() || share >= 1.0) return distribute(cands, x0, y0, x1, y1, quota);
   std::vector<Candidate> inside, outside;
   for (const Candidate& c : cands) {
-    const cv::Point2f p(static_cast<float>(c.x), static_cast<float>(c.y));
-    const bool in = std::any_of(moving.begin(), moving.end(),
-                                [&](const cv::Rect2f& r) { return r.contains(p); });
-    (in ? inside : outside).push_back(c);
+    const int u = std::clamp(static_cast<int>(std::lround(ax * c.x + bx)), 0, moving.cols - 1);
+    const int v = std::clamp(static_cast<int>(std::lround(ay * c.y + by)), 0, moving.rows - 1);
+    (moving.at<std::uint8_t>(v, u) ? inside : outside).push_back(c);
   }
   const int cap = static_cast<int>(std::lround(share * quota));
   int in_quota = std::min(static_cast<int>(inside.size()), cap);
@@ -346,12 +346,20 @@ std::vector<Candidate> distribute_split(const std::vector<Candidate>& cands,
   return kept;
 }
 
+/// The share of the image inside the keypoint border where `mask` is set.
+double covered_share(const cv::Mat& mask, int border) {
+  const cv::Rect inner(border, border, mask.cols - 2 * border, mask.rows - 2 * border);
+  if (mask.empty() || inner.width <= 0 || inner.height <= 0) return 0.0;
+  return static_cast<double>(cv::countNonZero(mask(inner))) / static_cast<double>(inner.area());
+}
+
 }  // namespace
 
-OrbFeatures OrbExtractor::extract(const cv::Mat& gray,
-                                  const std::vector<cv::Rect2f>& moving) const {
+OrbFeatures OrbExtractor::extract(const cv::Mat& gray, const cv::Mat& moving_mask) const {
   OrbFeatures result;
   if (gray.empty() || gray.type() != CV_8UC1) return result;
+  const cv::Mat moving =
+      moving_mask.size() == gray.size() && moving_mask.type() == CV_8UC1 ? moving_mask : cv::Mat();
   const int num_levels = options_.num_levels;
   std::vector<Level> levels(static_cast<std::size_t>(num_levels));
 
@@ -380,6 +388,11 @@ OrbFeatures OrbExtractor::extract(const cv::Mat& gray,
     used_levels = l + 1;
   }
   if (used_levels == 0) return result;
+  // The moving regions' share of each level's quota (the same share of every level's area).
+  const double moving_share =
+      options_.moving_density > 0.0
+          ? std::min(1.0, options_.moving_density * covered_share(moving, kBorder))
+          : 1.0;
 
   parallel_for(0, used_levels, [&](int first, int last) {
     std::vector<cv::KeyPoint> scratch;
@@ -423,16 +436,10 @@ OrbFeatures OrbExtractor::extract(const cv::Mat& gray,
   parallel_for(0, used_levels, [&](int first, int last) {
     for (int l = first; l < last; ++l) {
       Level& level = levels[static_cast<std::size_t>(l)];
-      // The moving regions in this level's pixels (x0 = ax * x + bx).
-      std::vector<cv::Rect2f> moving_here;
-      for (const cv::Rect2f& r : moving)
-        moving_here.emplace_back(static_cast<float>((r.x - level.bx) / level.ax),
-                                 static_cast<float>((r.y - level.by) / level.ay),
-                                 static_cast<float>(r.width / level.ax),
-                                 static_cast<float>(r.height / level.ay));
       const std::vector<Candidate> kept = distribute_split(
-          level.candidates, moving_here, options_.moving_share, float(kBorder), float(kBorder),
-          float(level.image.cols - kBorder), float(level.image.rows - kBorder), level.quota);
+          level.candidates, moving, level.ax, level.bx, level.ay, level.by, moving_share,
+          float(kBorder), float(kBorder), float(level.image.cols - kBorder),
+          float(level.image.rows - kBorder), level.quota);
       if (kept.empty()) continue;
       const std::ptrdiff_t step = static_cast<std::ptrdiff_t>(level.image.step[0]);
       level.keypoints.resize(kept.size());

@@ -53,7 +53,7 @@ std::vector<Field> mcslam_fields(PinholeCamera& c, SystemOptions& o) {
       {"orb.scale_factor", &o.orb.scale_factor},
       {"orb.fast_threshold", &o.orb.fast_threshold},
       {"orb.min_fast_threshold", &o.orb.min_fast_threshold},
-      {"orb.moving_share", &o.orb.moving_share},
+      {"orb.moving_density", &o.orb.moving_density},
       {"lines.detector", &o.lines.detector},
       {"lines.min_length", &o.lines.min_length},
       {"lines.max_lines", &o.lines.max_lines},

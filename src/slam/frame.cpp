@@ -85,13 +85,42 @@ Frame FrameBuilder::build(std::uint64_t id, double timestamp, const cv::Mat& gra
   return frame;
 }
 
+namespace {
+
+/// The pixels of `regions`: inside a box and not beyond its depth (a missing depth counts as
+/// inside). Empty when there are no regions.
+cv::Mat moving_mask(const std::vector<FrameMotion::MovingRegion>& regions, const cv::Mat& depth) {
+  if (regions.empty() || depth.empty()) return {};
+  cv::Mat mask = cv::Mat::zeros(depth.size(), CV_8UC1);
+  const cv::Rect image(0, 0, depth.cols, depth.rows);
+  for (const FrameMotion::MovingRegion& r : regions) {
+    if (r.max_depth < 0.0f) continue;  // a static object's box: cleared below
+    const cv::Rect box =
+        image & cv::Rect(cv::Point(static_cast<int>(std::floor(r.box.x)),
+                                   static_cast<int>(std::floor(r.box.y))),
+                         cv::Point(static_cast<int>(std::ceil(r.box.x + r.box.width)),
+                                   static_cast<int>(std::ceil(r.box.y + r.box.height))));
+    for (int v = box.y; v < box.y + box.height; ++v) {
+      const float* d = depth.ptr<float>(v);
+      std::uint8_t* m = mask.ptr<std::uint8_t>(v);
+      for (int u = box.x; u < box.x + box.width; ++u)
+        if (r.max_depth <= 0.0f || !(d[u] > 0.0f) || d[u] <= r.max_depth) m[u] = 1;
+    }
+  }
+  for (const FrameMotion::MovingRegion& r : regions)
+    if (r.max_depth < 0.0f) mask(image & cv::Rect(r.box)).setTo(0);
+  return mask;
+}
+
+}  // namespace
+
 void FrameBuilder::build_points(const cv::Mat& gray, const cv::Mat& depth,
                                 const FrameMotion& motion, features::FrameFeatures& out) const {
   const bool compensate = motion.T_rgb_depth.has_value();
   const SE3 T_rgb_d = compensate ? *motion.T_rgb_depth : SE3();
   const SE3 T_d_rgb = T_rgb_d.inverse();
   const bool rolling_shutter = rolling(motion);
-  features::OrbFeatures orb = orb_.extract(gray, motion.moving_regions);
+  features::OrbFeatures orb = orb_.extract(gray, moving_mask(motion.moving_regions, depth));
   out.points.resize(orb.keypoints.size());
   for (std::size_t i = 0; i < orb.keypoints.size(); ++i) {
     features::PointFeature& p = out.points[i];

@@ -266,20 +266,36 @@ FrameResult System::process(const PreparedImages& images, double timestamp,
 void System::remember_moving_regions(const FrameResult& result) {
   moving_regions_.clear();
   moving_regions_time_ = result.timestamp;
+  // Static objects' boxes are kept out of the regions (max_depth < 0): Algorithm 1 needs their
+  // features to go on telling them static.
   for (const ObjectReport& o : result.objects)
-    if (o.state == ObjectState::kDynamic) moving_regions_.push_back(o.detection.box);
+    if (o.state == ObjectState::kDynamic)
+      moving_regions_.push_back({o.detection.box, o.depth_far > 0.0f ? o.depth_far : 0.0f});
+  for (const ObjectReport& o : result.objects)
+    if (o.state == ObjectState::kStatic && o.source != ObjectReport::Source::kMover)
+      moving_regions_.push_back({o.detection.box, -1.0f});
 }
 
-std::vector<cv::Rect2f> System::expected_moving_regions(double timestamp) const {
+std::vector<FrameMotion::MovingRegion> System::expected_moving_regions(double timestamp) const {
   // A person walks at up to ~1.4 m/s; at 1 m from the camera that moves their image by
   // fx * 1.4 * dt pixels, which bounds where the previous frame's moving objects can be now.
   constexpr double kWalkingSpeed = 1.4;  // m/s
   constexpr double kNearDepth = 1.0;     // m
   const double dt = std::clamp(timestamp - moving_regions_time_, 0.0, 1.0);
   const auto margin = static_cast<float>(camera_.fx * kWalkingSpeed * dt / kNearDepth);
-  std::vector<cv::Rect2f> out;
-  for (const cv::Rect2f& r : moving_regions_)
-    out.emplace_back(r.x - margin, r.y - margin, r.width + 2 * margin, r.height + 2 * margin);
+  // Its far side comes no farther than the walk plus the gap that splits object from background.
+  const auto deeper =
+      static_cast<float>(kWalkingSpeed * dt + options_.tracker.dynamics.object_depth_gap);
+  std::vector<FrameMotion::MovingRegion> out;
+  for (const FrameMotion::MovingRegion& m : moving_regions_) {
+    const cv::Rect2f& r = m.box;
+    if (m.max_depth < 0.0f) {
+      out.push_back(m);  // a static object's box
+      continue;
+    }
+    out.push_back({{r.x - margin, r.y - margin, r.width + 2 * margin, r.height + 2 * margin},
+                   m.max_depth > 0.0f ? m.max_depth + deeper : 0.0f});
+  }
   return out;
 }
 

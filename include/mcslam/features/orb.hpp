@@ -56,14 +56,19 @@ struct OrbOptions {
   /// min_fast_threshold, which keeps keypoints on low-contrast (e.g. motion-blurred) regions.
   int fast_threshold = 20;
   int min_fast_threshold = 7;
-  /// At most this share of each level's features is kept inside the regions given to
-  /// extract() as moving (where the previous frame saw moving objects); the rest of the budget
-  /// goes to the corners outside them. People walking close to the camera fill most of the
-  /// image with textured clothing, and an even spread over the image then leaves the static
-  /// scene a few dozen features (Bonn crowd part 1, frame 318: 969 of 1000 on people, 19 pose
-  /// inliers). 0.25 still leaves a person's box the ~40 features that Algorithm 1 and the box
-  /// carrying sample. 1: no limit.
-  double moving_share = 0.25;
+  /// Inside the image region given to extract() as moving (where the previous frame saw moving
+  /// objects), features are kept at most this many times as densely as an even spread over
+  /// the image's area would put them: a level keeps at most moving_density x (the region's share
+  /// of the image) x its quota there, and the rest of its budget goes to the static scene.
+  /// People close to the camera are textured (clothing) in front of plain walls, and the spread
+  /// of corners then gives them nearly all of the budget: Bonn crowd part 1, frame 318, had 969
+  /// of 1000 features on people (who filled ~75 % of the image) and 19 pose inliers. With 1,
+  /// Bonn crowd part 1 sequential gives 0.0193 m against 0.0195 m, and from frame 240 (people
+  /// in view from the start) 0.0175 against 0.0224 m; on the synthetic scenes, whose walls are
+  /// as textured as the people, it is mixed (0.0032 against 0.0050 m with one person, 0.0049
+  /// to 0.0056 against 0.0044 m with four), so it is off by default (docs/crowd.md).
+  /// 0: no limit.
+  double moving_density = 0.0;
 
   /// An empty optional when the options are usable; otherwise what is wrong.
   std::optional<std::string> check() const;
@@ -88,9 +93,10 @@ class OrbExtractor {
   /// type, or an empty image, yields no features). Keypoints keep a margin of
   /// kBorder pixels (at their level) from the image border. Thread-safe: several images may be
   /// extracted concurrently with the same extractor; the result is deterministic.
-  /// `moving`: regions (level-0 pixels) expected to hold moving objects; the corners inside
-  /// any of them get at most options().moving_share of each level's quota, the others the rest.
-  OrbFeatures extract(const cv::Mat& gray, const std::vector<cv::Rect2f>& moving = {}) const;
+  /// `moving`: empty, or a CV_8UC1 mask of the image's size, non-zero where moving objects are
+  /// expected; the corners there get at most options().moving_density times the mask's share
+  /// of the image area of each level's quota, the others the rest.
+  OrbFeatures extract(const cv::Mat& gray, const cv::Mat& moving = {}) const;
 
   int num_levels() const { return options_.num_levels; }
   /// scale_factor^level: 1, 1.2, 1.44, ...

@@ -46,10 +46,17 @@ struct FrameMotion {
   /// middle row's time.
   Eigen::Vector3d angular_velocity = Eigen::Vector3d::Zero();
   double readout_time = 0.0;
-  /// Where moving objects are expected in this image (undistorted pixels): the regions of the
-  /// previous frame's moving objects, grown by their possible motion. ORB keeps at most
-  /// orb.moving_share of its features there (features::OrbExtractor::extract).
-  std::vector<cv::Rect2f> moving_regions;
+  /// Where moving objects are expected in this image (undistorted pixels): the boxes of the
+  /// previous frame's moving objects, grown by their possible motion, each up to a depth (the
+  /// object's far side; 0: the whole box; < 0: a static object's box, left out of the region).
+  /// What is farther inside a box is the background seen past the object. ORB keeps its features
+  /// there at most orb.moving_density times as dense as the image average
+  /// (features::OrbExtractor::extract).
+  struct MovingRegion {
+    cv::Rect2f box;
+    float max_depth = 0.0f;
+  };
+  std::vector<MovingRegion> moving_regions;
 };
 
 /// Extracts the feature kinds switched on in the options (ORB points with their depth and

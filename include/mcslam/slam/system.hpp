@@ -172,9 +172,9 @@ class System {
   std::uint64_t next_frame_id_ = 0;
   /// The boxes of the last frame's moving objects (for the next frame's feature budget).
   void remember_moving_regions(const FrameResult& result);
-  std::vector<cv::Rect2f> expected_moving_regions(double timestamp) const;
+  std::vector<FrameMotion::MovingRegion> expected_moving_regions(double timestamp) const;
 
-  std::vector<cv::Rect2f> moving_regions_;
+  std::vector<FrameMotion::MovingRegion> moving_regions_;
   double moving_regions_time_ = 0.0;
   bool started_in_map_ = false;  // a map made earlier was given (no cold start)
   int keyframes_made_ = 0;       // keyframes this System inserted
