@@ -1,17 +1,29 @@
 #!/usr/bin/env bash
 # Real-crowd benchmark: Bonn crowd (../shared/data/bonn/rgbd_bonn_crowd*) with the YOLOv8n
 # detector, in the default threaded mode, each variant N times (median, min-max), scored with
-# the Bonn marker-to-camera transform. The variants take one part of the object handling away:
-#   default        - everything (class prior, boxes carried forward, background kept, movers)
+# the Bonn marker-to-camera transform. Runs are interleaved (run 1 of every variant, then run 2,
+# ...) so that a machine's drift hits every variant alike. The variants take one part of the
+# object handling away:
+#   default        - everything (class prior, boxes carried forward, background kept, movers,
+#                    cold start, one OpenCV thread)
 #   wait           - --wait-detections: every frame waits for its own boxes (fresh, slower)
 #   no-propagation - boxes of earlier frames only grown, not carried by their features
 #   no-background  - every feature inside a moving object's box left out
 #   no-movers      - no search for motion without a box
 #   no-prior       - people judged by Algorithm 1 alone, as other objects (before the prior)
 #   no-detector    - geometry only
+#   no-cold-start  - frames never wait for their boxes (system.cold_start_keyframes: 0)
+#   moving-density - ORB keeps movers' regions no denser than the image (orb.moving_density: 1)
+#   opencv-pool    - OpenCV's thread pool on every core (system.opencv_threads: 0)
+#   before-23      - no-cold-start and opencv-pool together: the behaviour before issue 23
+#   cold, cold-before-23, cold-moving-density - default / before-23 / moving-density from
+#                    frame 240 (people in view from the first frame)
+#   realtime, realtime-before-23 - default / before-23 with --realtime
 # It prints ATE (whole run, and frames before / after the people enter at frame 240), tracked
-# share, frames/s, tracking median, the IoU of carried boxes against the detector's next boxes
-# (and of boxes only grown), and the frames where a moving region without a box was found.
+# share, frames/s, tracking median, the detector's pass time and the age of the boxes used,
+# the IoU of carried boxes against the detector's next boxes (and of boxes only grown), the
+# frames where a moving region without a box was found, and for real-time runs the share of
+# frames processed and the latency p95.
 # Usage: scripts/bench_crowd.sh [--runs N] [--output DIR] [--model M.onnx] [--variants a,b,...]
 #                               [SEQ_DIR]
 set -euo pipefail
@@ -45,30 +57,43 @@ settings() {  # variant -> settings file (empty: none)
     no-background) printf 'dynamics:\n  separate_background: false\n' > "$file" ;;
     no-movers) printf 'dynamics:\n  find_movers: false\n' > "$file" ;;
     no-prior) printf 'dynamics:\n  person_prior: false\n' > "$file" ;;
+    no-cold-start) printf 'system:\n  cold_start_keyframes: 0\n' > "$file" ;;
+    moving-density|cold-moving-density) printf 'orb:\n  moving_density: 1\n' > "$file" ;;
+    opencv-pool) printf 'system:\n  opencv_threads: 0\n' > "$file" ;;
+    before-23|cold-before-23|realtime-before-23)
+      printf 'system:\n  cold_start_keyframes: 0\n  opencv_threads: 0\n' > "$file" ;;
     *) return 0 ;;
   esac
   echo "$file"
 }
 
 IFS=, read -r -a names <<< "$variants"
-for v in "${names[@]}"; do
-  args=(--model "$model")
+for v in "${names[@]}"; do  # check every name before the first run
   case "$v" in
-    default|no-propagation|no-background|no-movers|no-prior) ;;
-    wait) args+=(--wait-detections) ;;
-    no-detector) args=() ;;
+    default|wait|no-propagation|no-background|no-movers|no-prior|no-detector|no-cold-start) ;;
+    moving-density|opencv-pool|before-23|cold|cold-before-23|cold-moving-density) ;;
+    realtime|realtime-before-23) ;;
     *) echo "bench_crowd: unknown variant $v" >&2; exit 2 ;;
   esac
-  file=$(settings "$v")
-  [ -n "$file" ] && args+=(--config "$file")
-  for i in $(seq 1 "$runs"); do
+done
+# The first frame of the segment with people (frame 240 of the sequence).
+t=$(grep -v '^#' "$seq/rgb.txt" | sed -n 241p | cut -d' ' -f1)
+for i in $(seq 1 "$runs"); do
+  for v in "${names[@]}"; do
+    args=(--model "$model")
+    case "$v" in
+      wait) args+=(--wait-detections) ;;
+      no-detector) args=() ;;
+      cold|cold-before-23|cold-moving-density) args+=(--first-frame 240) ;;
+      realtime|realtime-before-23) args+=(--realtime) ;;
+    esac
+    file=$(settings "$v")
+    [ -n "$file" ] && args+=(--config "$file")
     dir="$out/runs/$v-$i"
     echo "bench_crowd: $v run $i" >&2
     ./build/mcslam run "$seq" --output "$dir" "${args[@]}" -q 2> "$dir.err" ||
       echo "bench_crowd: $v run $i failed, see $dir.err" >&2
-    # Segments before and after the people enter (frame 240 of the sequence), each aligned on
-    # its own.
-    t=$(grep -v '^#' "$seq/rgb.txt" | sed -n 241p | cut -d' ' -f1)
+    # Segments before and after the people enter, each aligned on its own.
     if [ -f "$dir/trajectory.txt" ] && [ -f "$seq/groundtruth.txt" ]; then
       awk -v t="$t" '$1 < t' "$dir/trajectory.txt" > "$dir/before.txt"
       awk -v t="$t" '$1 >= t' "$dir/trajectory.txt" > "$dir/after.txt"
@@ -97,13 +122,13 @@ def fmt(values, digits=4):
     if len(values) == 1:
         return f"{m:.{digits}f}"
     return f"{m:.{digits}f} ({min(values):.{digits}f}-{max(values):.{digits}f})"
-print("| variant | ATE RMSE (m) | before people | with people | tracked | fps | tracking ms | carried IoU | grown IoU | mover frames |")
-print("|---|---|---|---|---|---|---|---|---|---|")
+print("| variant | ATE RMSE (m) | before people | with people | tracked | fps | tracking ms | detector pass ms | box age | carried IoU | grown IoU | mover frames | processed (real time) | latency p95 ms |")
+print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
 for v in variants:
     s = [load(os.path.join(out, "runs", f"{v}-{i}", "summary.json")) for i in range(1, runs + 1)]
     s = [x for x in s if x]
     if not s:
-        print(f"| {v} | failed | | | | | | | | |")
+        print(f"| {v} | failed | | | | | | | | | | | | |")
         continue
     ate = [x.get("ate_rmse_m") for x in s]
     parts = {p: [(load(os.path.join(out, "runs", f"{v}-{i}", f"{p}.json")) or {}).get("ate_rmse_m")
@@ -115,6 +140,12 @@ for v in variants:
     iou = [d.get("propagation", {}).get("iou_median") for d in dyn if d.get("propagation", {}).get("measured")]
     stale = [d.get("propagation", {}).get("stale_iou_median") for d in dyn if d.get("propagation", {}).get("measured")]
     movers = [d.get("mover_frames") for d in dyn if "mover_frames" in d]
+    passes = [d.get("detector_pass_ms", {}).get("median") for d in dyn if d.get("detector_passes")]
+    age = [d.get("median_age_frames") for d in dyn if d.get("detector_passes")]
+    rt = [x["realtime"] for x in s if x.get("realtime", {}).get("enabled")]
+    processed = [r["processed_ratio"] * 100 for r in rt]
+    latency = [r["latency_p95_ms"] for r in rt]
     print(f"| {v} | {fmt(ate)} | {fmt(parts['before'])} | {fmt(parts['after'])} | {fmt(tracked, 1)} % "
-          f"| {fmt(fps, 1)} | {fmt(ms, 1)} | {fmt(iou, 2)} | {fmt(stale, 2)} | {fmt(movers, 0)} |")
+          f"| {fmt(fps, 1)} | {fmt(ms, 1)} | {fmt(passes, 0)} | {fmt(age, 0)} | {fmt(iou, 2)} "
+          f"| {fmt(stale, 2)} | {fmt(movers, 0)} | {fmt(processed, 1)} | {fmt(latency, 0)} |")
 PY

@@ -944,6 +944,9 @@ nlohmann::json run_sequence(const RunRequest& request) {
   if (request.features)
     apply_feature_list(*request.features, config.options.use.points, config.options.use.lines,
                        config.options.use.planes);
+  // lines.detector auto: a run with a deadline (real time, a live stream) takes the faster FLD.
+  if (config.options.lines.detector == "auto")
+    config.options.lines.detector = request.realtime || request.live ? "fld" : "lsd";
   io::ensure_directory(request.output_dir);
   const fs::path out(request.output_dir);
   io::write_file_atomic((out / "config.yaml").string(), slam::to_yaml(config));

@@ -147,8 +147,8 @@ std::optional<std::string> LineOptions::check() const {
   if (!std::isfinite(min_length) || min_length < 0.0)
     return "lines.min_length must be finite and >= 0";
   if (max_lines < 1 || max_lines > 100000) return "lines.max_lines must be in [1, 100000]";
-  if (detector != "lsd" && detector != "fld")
-    return "lines.detector must be lsd or fld, got '" + detector + "'";
+  if (detector != "lsd" && detector != "fld" && detector != "auto")
+    return "lines.detector must be lsd, fld or auto, got '" + detector + "'";
   if (!std::isfinite(detection_scale) || detection_scale < 0.05 || detection_scale > 1.0)
     return "lines.detection_scale must be in [0.05, 1]";
   if (depth_samples < 4 || depth_samples > 256) return "lines.depth_samples must be in [4, 256]";

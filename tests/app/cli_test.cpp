@@ -4,6 +4,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <filesystem>
 #include <fstream>
@@ -251,6 +252,14 @@ TEST(CliRun, RealTimeRunAccountsForEveryFrame) {
   // The images were prepared off the frame loop.
   EXPECT_TRUE(summary["stages"].contains("prepare"));
   EXPECT_FALSE(summary["stages"].contains("undistort"));
+  // lines.detector auto: a run with a deadline takes FLD, a run without one LSD (config.yaml
+  // holds the effective value).
+  const auto has_line = [](const std::vector<std::string>& lines, const std::string& text) {
+    return std::any_of(lines.begin(), lines.end(),
+                       [&](const std::string& l) { return l.find(text) != std::string::npos; });
+  };
+  EXPECT_TRUE(has_line(lines_of(out / "config.yaml"), "detector: fld"));
+  EXPECT_TRUE(has_line(lines_of(main_run().out / "config.yaml"), "detector: lsd"));
   // Together with --repeat it is refused, with one message.
   const CliResult both =
       run_cli("run " + quote(main_sequence().string()) + " --output " +

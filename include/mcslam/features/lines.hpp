@@ -18,16 +18,19 @@ namespace mcslam::features {
 using LineDescriptor = OrbDescriptor;
 
 struct LineOptions {
-  /// The segment detector: "lsd" (OpenCV's Line Segment Detector, the default) or "fld" (the
-  /// Fast Line Detector of OpenCV contrib's ximgproc: Canny edges split into straight runs).
-  /// Both run on the image scaled by detection_scale. FLD takes 1.6 ms a frame on
-  /// freiburg1_rpy against LSD's 5.0 (with LBD and the depth fit: 4 against 7 ms), but its
-  /// segments sit on edge pixels (half a detection-image pixel off a step edge, where LSD is
-  /// sub-pixel): as good on the real sequences (sequential with yolov8n: freiburg1_rpy 0.0104
-  /// against 0.0107 m, Bonn crowd part 1 0.0185 against 0.0204 m) but worse on the synthetic
-  /// crowd (0.0058 against 0.0044 m) and off the true edges in the line tests, so not the
-  /// default (README, "Speed").
-  std::string detector = "lsd";
+  /// The segment detector: "lsd" (OpenCV's Line Segment Detector) or "fld" (the Fast Line
+  /// Detector of OpenCV contrib's ximgproc: Canny edges split into straight runs), or "auto"
+  /// (the default): LSD, except in runs with a deadline (`mcslam run --realtime`, the ROS node),
+  /// where the application picks FLD. Both run on the image scaled by detection_scale. FLD takes
+  /// 1.6 ms a frame on freiburg1_rpy against LSD's 5.0 (with LBD and the depth fit: 4 against
+  /// 7 ms), but its segments sit on edge pixels (half a detection-image pixel off a step edge,
+  /// where LSD is sub-pixel): as good on the real sequences (sequential with yolov8n:
+  /// freiburg1_rpy 0.0104 against 0.0107 m, Bonn crowd part 1 0.0185 against 0.0204 m) but
+  /// worse on the synthetic crowd (0.0058 against 0.0044 m) and off the true edges in the line
+  /// tests, so not the offline default. In real time on 2 cores with the detector it is what
+  /// lets the frame keep the camera's rate (Bonn crowd part 1 --realtime: 95.7 % of the frames
+  /// processed against 92.0 % with LSD; docs/crowd.md).
+  std::string detector = "auto";
   /// Segments shorter than this (pixels, full resolution) are dropped.
   double min_length = 25.0;
   /// At most this many segments are kept, longest first.
