@@ -15,7 +15,8 @@
 #   no-cold-start  - frames never wait for their boxes (system.cold_start_keyframes: 0)
 #   moving-density - ORB keeps movers' regions no denser than the image (orb.moving_density: 1)
 #   opencv-pool    - OpenCV's thread pool on every core (system.opencv_threads: 0)
-#   before-23      - no-cold-start and opencv-pool together: the behaviour before issue 23
+#   before-23      - no-cold-start and opencv-pool together, LSD lines in real time too: the
+#                    behaviour before issue 23
 #   cold, cold-before-23, cold-moving-density - default / before-23 / moving-density from
 #                    frame 240 (people in view from the first frame)
 #   realtime, realtime-before-23 - default / before-23 with --realtime
@@ -61,7 +62,8 @@ settings() {  # variant -> settings file (empty: none)
     moving-density|cold-moving-density) printf 'orb:\n  moving_density: 1\n' > "$file" ;;
     opencv-pool) printf 'system:\n  opencv_threads: 0\n' > "$file" ;;
     before-23|cold-before-23|realtime-before-23)
-      printf 'system:\n  cold_start_keyframes: 0\n  opencv_threads: 0\n' > "$file" ;;
+      printf 'system:\n  cold_start_keyframes: 0\n  opencv_threads: 0\nlines:\n  detector: lsd\n' \
+        > "$file" ;;
     *) return 0 ;;
   esac
   echo "$file"
