@@ -19,7 +19,8 @@
 #                    behaviour before issue 23
 #   cold, cold-before-23, cold-moving-density - default / before-23 / moving-density from
 #                    frame 240 (people in view from the first frame)
-#   realtime, realtime-before-23 - default / before-23 with --realtime
+#   realtime, realtime-before-23, realtime-lsd - default / before-23 / LSD lines
+#                    (lines.detector: lsd) with --realtime
 # It prints ATE (whole run, and frames before / after the people enter at frame 240), tracked
 # share, frames/s, tracking median, the detector's pass time and the age of the boxes used,
 # the IoU of carried boxes against the detector's next boxes (and of boxes only grown), the
@@ -60,6 +61,7 @@ settings() {  # variant -> settings file (empty: none)
     no-prior) printf 'dynamics:\n  person_prior: false\n' > "$file" ;;
     no-cold-start) printf 'system:\n  cold_start_keyframes: 0\n' > "$file" ;;
     moving-density|cold-moving-density) printf 'orb:\n  moving_density: 1\n' > "$file" ;;
+    realtime-lsd) printf 'lines:\n  detector: lsd\n' > "$file" ;;
     opencv-pool) printf 'system:\n  opencv_threads: 0\n' > "$file" ;;
     before-23|cold-before-23|realtime-before-23)
       printf 'system:\n  cold_start_keyframes: 0\n  opencv_threads: 0\nlines:\n  detector: lsd\n' \
@@ -74,7 +76,7 @@ for v in "${names[@]}"; do  # check every name before the first run
   case "$v" in
     default|wait|no-propagation|no-background|no-movers|no-prior|no-detector|no-cold-start) ;;
     moving-density|opencv-pool|before-23|cold|cold-before-23|cold-moving-density) ;;
-    realtime|realtime-before-23) ;;
+    realtime|realtime-before-23|realtime-lsd) ;;
     *) echo "bench_crowd: unknown variant $v" >&2; exit 2 ;;
   esac
 done
@@ -87,7 +89,7 @@ for i in $(seq 1 "$runs"); do
       wait) args+=(--wait-detections) ;;
       no-detector) args=() ;;
       cold|cold-before-23|cold-moving-density) args+=(--first-frame 240) ;;
-      realtime|realtime-before-23) args+=(--realtime) ;;
+      realtime|realtime-before-23|realtime-lsd) args+=(--realtime) ;;
     esac
     file=$(settings "$v")
     [ -n "$file" ] && args+=(--config "$file")
