@@ -406,7 +406,6 @@ std::optional<std::string> DetectorOptions::check() const {
     return "detector.confidence must be in (0, 1), got " + show(confidence);
   if (!(nms_iou > 0.0 && nms_iou <= 1.0))
     return "detector.nms_iou must be in (0, 1], got " + show(nms_iou);
-  if (threads < 0) return "detector.threads must be >= 0, got " + std::to_string(threads);
   return std::nullopt;
 }
 

@@ -28,12 +28,12 @@ namespace mcslam::perception {
 namespace {
 
 namespace fs = std::filesystem;
-using test::expect_input_error;
 using mcslam::test::field;
-using test::TempDir;
 using mcslam::test::tiny_onnx;
 using mcslam::test::value_info;
 using mcslam::test::varint;
+using test::expect_input_error;
+using test::TempDir;
 
 const std::string kModels = MCSLAM_SHARED_MODELS;
 const std::string kYoloV8 = kModels + "/yolov8n_320.onnx";
@@ -82,21 +82,19 @@ void expect_box(const cv::Rect2f& box, const cv::Rect2f& expected, double tolera
 
 TEST(DetectorOptions, Check) {
   EXPECT_FALSE(DetectorOptions{}.check());
-  const auto problem = [](double confidence, double nms, int threads) {
+  const auto problem = [](double confidence, double nms) {
     DetectorOptions o;
     o.confidence = confidence;
     o.nms_iou = nms;
-    o.threads = threads;
     return o.check().value_or("");
   };
-  EXPECT_EQ(problem(0.5, 0.5, 0), "");
-  EXPECT_EQ(problem(0.5, 1.0, 4), "");
-  EXPECT_EQ(problem(0.0, 0.5, 1).rfind("detector.confidence", 0), 0u);
-  EXPECT_EQ(problem(1.0, 0.5, 1).rfind("detector.confidence", 0), 0u);
-  EXPECT_EQ(problem(std::nan(""), 0.5, 1).rfind("detector.confidence", 0), 0u);
-  EXPECT_EQ(problem(0.5, 0.0, 1).rfind("detector.nms_iou", 0), 0u);
-  EXPECT_EQ(problem(0.5, 1.5, 1).rfind("detector.nms_iou", 0), 0u);
-  EXPECT_EQ(problem(0.5, 0.5, -1).rfind("detector.threads", 0), 0u);
+  EXPECT_EQ(problem(0.5, 0.5), "");
+  EXPECT_EQ(problem(0.5, 1.0), "");
+  EXPECT_EQ(problem(0.0, 0.5).rfind("detector.confidence", 0), 0u);
+  EXPECT_EQ(problem(1.0, 0.5).rfind("detector.confidence", 0), 0u);
+  EXPECT_EQ(problem(std::nan(""), 0.5).rfind("detector.confidence", 0), 0u);
+  EXPECT_EQ(problem(0.5, 0.0).rfind("detector.nms_iou", 0), 0u);
+  EXPECT_EQ(problem(0.5, 1.5).rfind("detector.nms_iou", 0), 0u);
 }
 
 TEST(Letterbox, YoloV8CentresYoloxTopLeft) {

@@ -30,13 +30,8 @@ struct DetectorOptions {
   double confidence = 0.35;
   /// Class-wise non-maximum suppression IoU threshold.
   double nms_iou = 0.45;
-  /// Threads OpenCV DNN may use for one forward pass (0: OpenCV's default).
-  /// OpenCV 4.6's DNN runs on OpenCV's global thread pool (cv::setNumThreads) and has no
-  /// per-network thread setting, and the library never changes that global state: the value is
-  /// checked but not applied, so 0 and 1 (and any other count) behave the same, namely as the
-  /// application configured OpenCV. An application that wants one thread calls
-  /// cv::setNumThreads(1) itself.
-  int threads = 1;
+  // No thread count: OpenCV 4.6's DNN runs a forward pass on OpenCV's process-wide pool
+  // (cv::setNumThreads), which the application sets (mcslam: system.opencv_threads).
   std::optional<std::string> check() const;
 };
 
