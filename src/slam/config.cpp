@@ -134,6 +134,8 @@ std::vector<Field> mcslam_fields(PinholeCamera& c, SystemOptions& o) {
       {"dynamics.propagation_radius", &t.dynamics.propagation_radius},
       {"dynamics.min_propagation_matches", &t.dynamics.min_propagation_matches},
       {"dynamics.propagation_margin", &t.dynamics.propagation_margin},
+      {"dynamics.propagate_by_flow", &t.dynamics.propagate_by_flow},
+      {"dynamics.flow_max_error", &t.dynamics.flow_max_error},
       {"dynamics.separate_background", &t.dynamics.separate_background},
       {"dynamics.object_depth_gap", &t.dynamics.object_depth_gap},
       {"dynamics.find_movers", &t.dynamics.find_movers},

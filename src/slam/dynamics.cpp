@@ -58,6 +58,7 @@ std::optional<std::string> DynamicsOptions::check() const {
   if (!(propagation_radius >= 0.0)) return "dynamics.propagation_radius must be >= 0 (pixels)";
   if (min_propagation_matches < 1) return "dynamics.min_propagation_matches must be >= 1";
   if (!(propagation_margin >= 0.0)) return "dynamics.propagation_margin must be >= 0 (pixels)";
+  if (!(flow_max_error > 0.0)) return "dynamics.flow_max_error must be > 0 (pixels)";
   if (!(object_depth_gap > 0.0)) return "dynamics.object_depth_gap must be > 0 (metres)";
   if (!(mover_displacement > 0.0)) return "dynamics.mover_displacement must be > 0 (metres)";
   if (!(mover_relative >= 0.0)) return "dynamics.mover_relative must be >= 0";

@@ -50,6 +50,7 @@ Frame FrameBuilder::build(std::uint64_t id, double timestamp, const cv::Mat& gra
                           StageTimes* times) const {
   auto result = std::make_shared<features::FrameFeatures>();
   result->pyramid = pyramid_;
+  result->image = gray;
   // Lines and planes are extracted on their own threads while this one extracts the points:
   // the three read the images only and write their own lists.
   double line_ms = 0.0, plane_ms = 0.0;

@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <memory>
+#include <opencv2/core/mat.hpp>
 #include <vector>
 
 #include "mcslam/features/grid.hpp"
@@ -61,6 +62,9 @@ struct FrameFeatures {
   std::vector<PlaneFeature> planes;
   KeypointGrid grid;
   std::shared_ptr<const ScalePyramid> pyramid;
+  /// The undistorted grey image the features came from (shared, not copied): object boxes are
+  /// carried between frames by the optical flow of their features.
+  cv::Mat image;
 
   /// The points' descriptors, in point order (for matching and bags of words).
   std::vector<OrbDescriptor> point_descriptors() const {

@@ -116,6 +116,19 @@ struct DynamicsOptions {
   int min_propagation_matches = 4;
   /// Margin (pixels per frame of age) added around a carried box for what its motion misses.
   double propagation_margin = 3.0;
+  /// Carry boxes by the optical flow (pyramidal Lucas-Kanade, checked forwards and backwards)
+  /// of their features from the detector's image to the frame's, started at where the camera's
+  /// motion alone would put them; the descriptor matches above are the fallback when fewer than
+  /// min_propagation_matches features are followed. Flow follows a blurred person whose
+  /// descriptors no longer match (half the person boxes on Bonn crowd had fewer than 8 matches).
+  /// Off by default: on Bonn crowd part 1 (threaded, 3 runs each) the carried boxes overlap the
+  /// detector's next boxes better (median IoU 0.80 against 0.78) but the frame costs 3.5 ms more
+  /// (object_prepare 4.4 against 1.1 ms) and the ATE is no better (0.0184 against 0.0188 m);
+  /// docs/crowd.md.
+  bool propagate_by_flow = false;
+  /// A followed feature must come back to within this many pixels of its start when tracked
+  /// back (the forward-backward check that rejects occlusions and drift).
+  double flow_max_error = 1.0;
 
   // --- background inside boxes ---
   /// A box holds background behind the object: features farther than the object's own depth
