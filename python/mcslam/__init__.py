@@ -82,6 +82,9 @@ def make_settings(camera, settings=None, *, sequential=None, vocabulary=None,
         elif os.path.isfile(name):
             s = Settings()
             s.load_file(name)
+        elif os.sep in name or name.startswith("."):
+            raise InputError(f"{name}: no such folder or file (camera: a preset name, a "
+                             "sequence folder or a settings file)")
         else:
             s = Settings.preset(name)  # raises InputError naming the known presets
     else:

@@ -156,6 +156,7 @@ def test_missing_files_raise(tmp_path):
     raises("nowhere", mcslam.read_trajectory, missing)
     raises("nowhere", mcslam.System, "tum_fr1", missing)  # a settings file
     raises("unknown camera preset 'kinect9'", mcslam.System, "kinect9")
+    raises("nowhere: no such folder or file", mcslam.System, missing)
     raises("model.onnx", mcslam.System, "tum_fr1", model=str(tmp_path / "model.onnx"))
     raises("detections.json", mcslam.System, "tum_fr1",
            detections=str(tmp_path / "detections.json"))
