@@ -71,6 +71,18 @@ assert worst <= 1e-6, worst
 print(f"test_package: {len(a)} poses, the example's and mcslam run's agree to {worst:.1e} m")
 PY
 
+# The installed Python package (when the build has it), also with the build tree away.
+pydir=$(find "$prefix/lib" -maxdepth 3 -type d -path '*/dist-packages/mcslam' | head -1)
+if [ -n "$pydir" ]; then
+  python=/usr/bin/python3; [ -x "$python" ] || python=python3
+  voc=$(PYTHONPATH="$(dirname "$pydir")" "$python" -c \
+        'import mcslam; print(mcslam.__version__, mcslam.Settings().vocabulary)') \
+    || fail "import mcslam from $pydir"
+  [ "$voc" = "$("$prefix/bin/mcslam" --version | cut -d' ' -f2) $prefix/share/mcslam/orb_vocabulary.bin" ] \
+    || fail "the installed Python package says '$voc'"
+  echo "test_package: python: $voc"
+fi
+
 echo "test_package: pkg-config"
 export PKG_CONFIG_PATH="$prefix/lib/pkgconfig"
 flags=$(pkg-config --cflags --libs mcslam) || fail "pkg-config --cflags --libs mcslam"

@@ -160,7 +160,7 @@ struct PlaceOptions {
   LoopOptions loop;
 
   /// The default vocabulary (data/orb_vocabulary.bin of the repository, installed in
-  /// share/mcslam): $MCSLAM_VOCABULARY when set, else found by find_data_file (core/data_files.hpp).
+  /// share/mcslam): $MCSLAM_VOCABULARY when set, else find_data_file (core/data_files.hpp).
   static std::string default_vocabulary_path();
   std::optional<std::string> check() const;
 };
