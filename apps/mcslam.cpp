@@ -20,6 +20,7 @@
 #include "mcslam/io/trajectory_io.hpp"
 #include "mcslam/slam/config.hpp"
 #include "mcslam/synth/sequence.hpp"
+#include "mcslam/version.hpp"
 #ifdef MCSLAM_HAVE_ROS
 #include "mcslam/ros/bag.hpp"
 #include "mcslam/ros/node.hpp"
@@ -203,6 +204,8 @@ int detect_command(const mcslam::app::DetectRequest& request, bool quiet) {
 int main(int argc, char** argv) {
   CLI::App cli{"mcslam: semantic RGB-D SLAM for dynamic indoor scenes"};
   cli.require_subcommand(1);
+  cli.set_version_flag("--version", std::string("mcslam ") + MCSLAM_VERSION_STRING,
+                       "Print the version and exit");
 
   mcslam::app::RunRequest run;
   bool quiet = false;
@@ -239,9 +242,10 @@ int main(int argc, char** argv) {
   run_cmd->add_option("--model", run.model,
                       "ONNX object detector (Ultralytics YOLOv8/YOLO11 or YOLOX export) for "
                       "dynamic-object handling");
-  run_cmd->add_option("--detections", run.detections,
-                      "Per-frame boxes from a detections file (JSON, see README) instead of a "
-                      "model");
+  run_cmd->add_option(
+      "--detections", run.detections,
+      "Per-frame boxes from a detections file (JSON, see docs/objects.md) instead of a "
+      "model");
   run_cmd->add_option("--confidence", run.confidence, "Detector confidence threshold");
   run_cmd->add_flag("--wait-detections", run.wait_for_detections,
                     "Each frame waits for its own detection (default only with --sequential)");

@@ -18,6 +18,8 @@ PACKAGES=(
   clang-format
   clang libclang-rt-14-dev  # libFuzzer and the sanitizers of the fuzz preset (scripts/fuzz.sh)
   python3
+  # the Python bindings (python/: pybind11, numpy), their tests and the plotting example
+  pybind11-dev python3-dev python3-numpy python3-pytest python3-matplotlib
   chromium  # headless browser test of report.html
   # ROS 1 (the optional ros module: bags, `mcslam ros`; roscore for its test)
   libroscpp-dev librosbag-storage-dev libmessage-filters-dev libtf2-ros-dev libtf2-msgs-dev

@@ -1,5 +1,9 @@
 #include "mcslam/slam/options.hpp"
 
+#include <cstdlib>
+
+#include "mcslam/core/data_files.hpp"
+
 namespace mcslam::slam {
 
 std::optional<std::string> TrackerOptions::check() const {
@@ -100,7 +104,11 @@ std::optional<std::string> LoopOptions::check() const {
   return pose_graph.check();
 }
 
-std::string PlaceOptions::default_vocabulary_path() { return MCSLAM_DEFAULT_VOCABULARY; }
+std::string PlaceOptions::default_vocabulary_path() {
+  if (const char* path = std::getenv("MCSLAM_VOCABULARY"); path != nullptr && *path != '\0')
+    return path;
+  return find_data_file("orb_vocabulary.bin");
+}
 
 std::optional<std::string> PlaceOptions::check() const {
   if (direct_levels_up < 0) return "place.direct_levels_up must not be negative";

@@ -159,7 +159,8 @@ struct PlaceOptions {
   int direct_levels_up = 3;
   LoopOptions loop;
 
-  /// The vocabulary file kept in the repository (data/orb_vocabulary.bin of the source tree).
+  /// The default vocabulary (data/orb_vocabulary.bin of the repository, installed in
+  /// share/mcslam): $MCSLAM_VOCABULARY when set, else find_data_file (core/data_files.hpp).
   static std::string default_vocabulary_path();
   std::optional<std::string> check() const;
 };
