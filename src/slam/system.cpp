@@ -159,39 +159,11 @@ FrameResult System::process(const PreparedImages& images, double timestamp,
   if (detections_ && rgb.channels() == 3)
     detections_->submit(result.frame_id, timestamp, rgb, wait_for_boxes);
 
-  Stopwatch watch;
-  const cv::Mat& gray = images.gray;
-  const cv::Mat& undistorted_depth = images.depth;
-  watch.restart();
-  FrameMotion motion;
-  if (options_.tracker.compensate_depth_time && depth_timestamp &&
-      std::abs(*depth_timestamp - timestamp) > 1e-4)
-    motion.T_rgb_depth = tracker_->predicted_motion(timestamp - *depth_timestamp);
-  // The readout in use: the fixed setting, or the estimate once it is confident (0 before).
-  const double readout = readout_ ? readout_->readout_time() : camera_.readout_time;
-  if (readout != 0.0) {
-    motion.readout_time = readout;
-    motion.angular_velocity = tracker_->angular_velocity();
-  }
-  result.readout_time = readout;
-  motion.moving_regions = expected_moving_regions(timestamp);
+  const FrameMotion motion = frame_motion(timestamp, depth_timestamp);
+  result.readout_time = motion.readout_time;
   Frame frame =
-      builder_->build(result.frame_id, timestamp, gray, undistorted_depth, motion, &result.times);
-  if (detections_) {
-    watch.restart();
-    if (auto found = detections_->collect(result.frame_id, wait_for_boxes)) {
-      auto objects = std::make_shared<FrameObjects>();
-      objects->boxes = undistort_boxes(camera_, std::move(found->boxes));
-      objects->fresh = found->frame_id == result.frame_id;
-      objects->age = static_cast<int>(result.frame_id - found->frame_id);
-      frame.objects = std::move(objects);
-      result.detections_used = true;
-      result.detections_fresh = frame.objects->fresh;
-      result.detections_age = frame.objects->age;
-      if (frame.objects->fresh && found->detect_ms > 0.0) result.detect_ms = found->detect_ms;
-    }
-    result.times.add("detection_wait", watch.elapsed_ms());
-  }
+      builder_->build(result.frame_id, timestamp, images.gray, images.depth, motion, &result.times);
+  if (detections_) attach_boxes(frame, wait_for_boxes, result);
   result.features = static_cast<int>(frame.features->points.size());
   result.lines = static_cast<int>(frame.features->lines.size());
   result.planes = static_cast<int>(frame.features->planes.size());
@@ -219,26 +191,7 @@ FrameResult System::process(const PreparedImages& images, double timestamp,
   result.mover_regions = outcome.objects.mover_regions;
   result.mover_points = outcome.objects.mover_points;
   remember_moving_regions(result);
-  if (readout_) {
-    if (outcome.state == TrackingState::kOk) {
-      ReadoutFrame observed;
-      observed.timestamp = timestamp;
-      observed.T_c_w = outcome.T_c_w;
-      observed.omega_used = motion.angular_velocity;
-      observed.readout_used = motion.readout_time;
-      const auto& points = frame.features->points;
-      const auto& pyramid = *frame.features->pyramid;
-      observed.points.reserve(outcome.point_inliers.size());
-      for (const auto& [i, landmark] : outcome.point_inliers)
-        if (points[i].has_depth())
-          observed.points.push_back(
-              {landmark, points[i].keypoint.uv.cast<double>(), points[i].depth,
-               pyramid.inv_sigma2[static_cast<std::size_t>(points[i].keypoint.level)]});
-      readout_->add(std::move(observed));
-    } else {
-      readout_->reset();
-    }
-  }
+  if (readout_) observe_readout(frame, motion, outcome);
   if (outcome.state == TrackingState::kOk) {
     result.T_w_c = outcome.T_c_w.inverse();
     record.tracked = true;
@@ -261,6 +214,59 @@ FrameResult System::process(const PreparedImages& images, double timestamp,
   }
   records_.push_back(record);
   return result;
+}
+
+void System::observe_readout(const Frame& frame, const FrameMotion& motion,
+                             const TrackingOutcome& outcome) {
+  if (outcome.state != TrackingState::kOk) {
+    readout_->reset();
+    return;
+  }
+  ReadoutFrame observed;
+  observed.timestamp = frame.timestamp;
+  observed.T_c_w = outcome.T_c_w;
+  observed.omega_used = motion.angular_velocity;
+  observed.readout_used = motion.readout_time;
+  const auto& points = frame.features->points;
+  const auto& pyramid = *frame.features->pyramid;
+  observed.points.reserve(outcome.point_inliers.size());
+  for (const auto& [i, landmark] : outcome.point_inliers)
+    if (points[i].has_depth())
+      observed.points.push_back(
+          {landmark, points[i].keypoint.uv.cast<double>(), points[i].depth,
+           pyramid.inv_sigma2[static_cast<std::size_t>(points[i].keypoint.level)]});
+  readout_->add(std::move(observed));
+}
+
+FrameMotion System::frame_motion(double timestamp, std::optional<double> depth_timestamp) const {
+  FrameMotion motion;
+  if (options_.tracker.compensate_depth_time && depth_timestamp &&
+      std::abs(*depth_timestamp - timestamp) > 1e-4)
+    motion.T_rgb_depth = tracker_->predicted_motion(timestamp - *depth_timestamp);
+  // The readout in use: the fixed setting, or the estimate once it is confident (0 before).
+  const double readout = readout_ ? readout_->readout_time() : camera_.readout_time;
+  if (readout != 0.0) {
+    motion.readout_time = readout;
+    motion.angular_velocity = tracker_->angular_velocity();
+  }
+  motion.moving_regions = expected_moving_regions(timestamp);
+  return motion;
+}
+
+void System::attach_boxes(Frame& frame, bool wait, FrameResult& result) const {
+  Stopwatch watch;
+  if (auto found = detections_->collect(result.frame_id, wait)) {
+    auto objects = std::make_shared<FrameObjects>();
+    objects->boxes = undistort_boxes(camera_, std::move(found->boxes));
+    objects->fresh = found->frame_id == result.frame_id;
+    objects->age = static_cast<int>(result.frame_id - found->frame_id);
+    frame.objects = std::move(objects);
+    result.detections_used = true;
+    result.detections_fresh = frame.objects->fresh;
+    result.detections_age = frame.objects->age;
+    if (frame.objects->fresh && found->detect_ms > 0.0) result.detect_ms = found->detect_ms;
+  }
+  result.times.add("detection_wait", watch.elapsed_ms());
 }
 
 void System::remember_moving_regions(const FrameResult& result) {

@@ -170,6 +170,16 @@ class System {
   bool wait_for_detections_ = true;
   std::vector<FrameRecord> records_;
   std::uint64_t next_frame_id_ = 0;
+  /// What is known of the camera's motion around the frame (depth time, rolling shutter) and
+  /// where moving objects are expected in it.
+  FrameMotion frame_motion(double timestamp, std::optional<double> depth_timestamp) const;
+  /// The frame's boxes from the detection source (its own when `wait`), into frame.objects and
+  /// the result's detection fields.
+  void attach_boxes(Frame& frame, bool wait, FrameResult& result) const;
+  /// A tracked frame's inliers to the readout estimator (camera.readout_time: auto); a lost
+  /// frame resets it.
+  void observe_readout(const Frame& frame, const FrameMotion& motion,
+                       const TrackingOutcome& outcome);
   /// The boxes of the last frame's moving objects (for the next frame's feature budget).
   void remember_moving_regions(const FrameResult& result);
   std::vector<FrameMotion::MovingRegion> expected_moving_regions(double timestamp) const;
