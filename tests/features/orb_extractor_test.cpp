@@ -433,8 +433,10 @@ TEST(OrbExtractor, MovingRegionsAreNoDenserThanTheImageAverage) {
   const double share_limited = double(inside(limited)) / double(limited.size());
   EXPECT_GT(share_unlimited, 0.7) << "the textured half takes most of an unlimited spread";
   EXPECT_EQ(inside(no_regions), inside(unlimited)) << "no regions: no limit";
-  // The covered share is measured inside the keypoint border: half.
-  EXPECT_LE(share_limited, 0.53);
+  // The covered share is measured inside the keypoint border: half. A level whose faint half
+  // has fewer corners than its part hands the rest back to the textured half, and each level
+  // rounds its share: a few points over half.
+  EXPECT_LE(share_limited, 0.56);
   EXPECT_GT(share_limited, 0.4) << "the moving half keeps its share";
   EXPECT_GE(limited.size(), unlimited.size() - 20) << "the budget moves, it is not lost";
 
