@@ -121,7 +121,10 @@ void FrameBuilder::build_points(const cv::Mat& gray, const cv::Mat& depth,
   const SE3 T_rgb_d = compensate ? *motion.T_rgb_depth : SE3();
   const SE3 T_d_rgb = T_rgb_d.inverse();
   const bool rolling_shutter = rolling(motion);
-  features::OrbFeatures orb = orb_.extract(gray, moving_mask(motion.moving_regions, depth));
+  // The mask only matters when ORB limits its features there (orb.moving_density > 0).
+  const cv::Mat moving =
+      orb_.options().moving_density > 0.0 ? moving_mask(motion.moving_regions, depth) : cv::Mat();
+  features::OrbFeatures orb = orb_.extract(gray, moving);
   out.points.resize(orb.keypoints.size());
   for (std::size_t i = 0; i < orb.keypoints.size(); ++i) {
     features::PointFeature& p = out.points[i];
