@@ -750,6 +750,11 @@ nlohmann::json run_frames(const RunRequest& request, const std::string& source_p
                                  {"events", reloc_events}};
   }
   summary["loops"] = loops_json(system.loop_statistics(), config.options.place);
+  const slam::SolverStatistics solver = system.solver_statistics();
+  summary["solver_failures"] = {{"pose", solver.pose_failures},
+                                {"bundle_adjustment", solver.bundle_adjustment_failures},
+                                {"full_ba", solver.full_ba_failures},
+                                {"pose_graph", solver.pose_graph_failures}};
   summary["session"] = {{"loaded", request.load_session.value_or("")},
                         {"localize", config.options.localize},
                         {"saved", request.save_session.value_or("")}};

@@ -2,13 +2,33 @@
 
 #include <algorithm>
 #include <optional>
+#include <unordered_set>
 
 namespace mcslam::map {
 
+namespace {
+
+/// The keyframe a landmark moves with: the one that created it while it exists, else its first
+/// observer that exists.
+template <typename Observations>
+KeyFrameId reference_keyframe(const Map& map, KeyFrameId first, const Observations& observations) {
+  if (map.keyframe(first) != nullptr) return first;
+  for (const auto& obs : observations)
+    if (map.keyframe(obs.first) != nullptr) return obs.first;
+  return kNoId;
+}
+
+}  // namespace
+
 void apply_correction(Map& map, const MapCorrection& correction) {
   if (correction.after.empty()) return;
+  map.count_correction();
+  std::unordered_set<PointId> observations_changed;
   for (const auto& [kf, point] : correction.point_outliers)
-    if (map.point(point) != nullptr) map.erase_observation(point, kf);
+    if (map.point(point) != nullptr) {
+      map.erase_observation(point, kf);
+      observations_changed.insert(point);
+    }
   for (const auto& [kf, line] : correction.line_outliers)
     if (map.line(line) != nullptr) map.erase_line_observation(line, kf);
   for (const auto& [kf, plane] : correction.plane_outliers)
@@ -24,13 +44,16 @@ void apply_correction(Map& map, const MapCorrection& correction) {
     if (map.keyframe(id) != nullptr) corrected.push_back(id);
   std::sort(corrected.begin(), corrected.end());
   if (corrected.empty()) return;
-  const auto old_pose = [&](KeyFrameId id) {
-    const auto it = correction.before.find(id);
-    return it != correction.before.end() ? it->second : map.keyframe(id)->T_c_w;
-  };
-  for (KeyFrameId id : corrected) moves[id] = {old_pose(id), correction.after.at(id)};
+  // A listed keyframe at pose C now, corrected from B to A: C B^-1 A (A when C = B). Its world
+  // motion, p' = A^-1 B p, is the same whatever local BA did to it since B.
+  for (KeyFrameId id : corrected) {
+    const SE3& now = map.keyframe(id)->T_c_w;
+    const SE3& after = correction.after.at(id);
+    const auto b = correction.before.find(id);
+    moves[id] = {now, b != correction.before.end() ? now * b->second.inverse() * after : after};
+  }
   for (const auto& [id, kf] : map.keyframes()) {
-    if (moves.count(id) != 0) continue;
+    if (moves.count(id) != 0 || correction.listed_only) continue;
     // The keyframe it hangs on: its strongest covisible corrected keyframe, else the closest
     // earlier corrected one (else the first).
     KeyFrameId ref = kNoId;
@@ -55,21 +78,31 @@ void apply_correction(Map& map, const MapCorrection& correction) {
     return it->second.new_T_c_w.inverse() * it->second.old_T_c_w;
   };
   const auto reference_motion = [&](KeyFrameId first, const auto& observations) {
-    if (auto m = motion_of(first)) return m;
-    for (const auto& obs : observations)
-      if (auto m = motion_of(obs.first)) return m;
-    return std::optional<SE3>();
+    return motion_of(reference_keyframe(map, first, observations));
+  };
+  const auto unchanged_since_solved = [&](PointId id, const Eigen::Vector3d& p_w) {
+    if (correction.points_before.empty()) return true;
+    const auto it = correction.points_before.find(id);
+    return it != correction.points_before.end() && it->second == p_w;
   };
   std::vector<PointId> point_ids;
   for (const auto& [id, p] : map.points()) point_ids.push_back(id);
   for (PointId id : point_ids) {
     const MapPoint& p = *map.point(id);
-    if (const auto it = correction.points.find(id); it != correction.points.end()) {
-      map.set_point_position(id, it->second);
-    } else if (const auto m = reference_motion(p.first_keyframe, p.observations)) {
+    const auto solved = correction.points.find(id);
+    const auto m = reference_motion(p.first_keyframe, p.observations);
+    if (solved != correction.points.end() && unchanged_since_solved(id, p.p_w)) {
+      map.set_point_position(id, solved->second);
+    } else if (m) {
       map.set_point_position(id, (*m) * p.p_w);
+    } else if (solved == correction.points.end()) {
+      continue;  // neither solved nor moved: nothing about it changed
     }
-    map.update_point_appearance(id);
+    // The descriptor depends on the observations only: recomputed where they changed.
+    if (observations_changed.count(id) != 0)
+      map.update_point_appearance(id);
+    else
+      map.update_point_geometry(id);
   }
   std::vector<LineId> line_ids;
   for (const auto& [id, l] : map.lines()) line_ids.push_back(id);

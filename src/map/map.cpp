@@ -154,6 +154,7 @@ void Map::replace_point(PointId old_point, PointId new_point) {
   const int visible = oit->second.visible;
   const int found = oit->second.found;
   erase_point(old_point);
+  replaced_points_[old_point] = new_point;
   for (const auto& [kf_id, index] : observations) add_observation(new_point, kf_id, index);
   nit = points_.find(new_point);
   nit->second.visible += visible;
@@ -234,21 +235,52 @@ void Map::set_point_color(PointId id, const std::array<std::uint8_t, 3>& rgb) {
   if (auto it = points_.find(id); it != points_.end()) it->second.color = rgb;
 }
 
+PointId Map::resolve_point(PointId id) const {
+  // Chains are short (a point is fused a few times at most); the bound guards against a cycle.
+  for (std::size_t step = 0; step <= replaced_points_.size() && id != kNoId; ++step) {
+    if (points_.count(id) != 0) return id;
+    const auto it = replaced_points_.find(id);
+    if (it == replaced_points_.end()) return kNoId;
+    id = it->second;
+  }
+  return kNoId;
+}
+
+LineId Map::resolve_line(LineId id) const {
+  for (std::size_t step = 0; step <= replaced_lines_.size() && id != kNoId; ++step) {
+    if (lines_.count(id) != 0) return id;
+    const auto it = replaced_lines_.find(id);
+    if (it == replaced_lines_.end()) return kNoId;
+    id = it->second;
+  }
+  return kNoId;
+}
+
 void Map::update_point_appearance(PointId id) {
+  update_point_geometry(id);
   auto pit = points_.find(id);
   if (pit == points_.end()) return;
   MapPoint& mp = pit->second;
-  std::vector<const features::PointFeature*> observed;
+  std::vector<const features::OrbDescriptor*> descriptors;
+  for (const auto& [kf_id, index] : mp.observations)
+    if (const KeyFrame* kf = keyframe(kf_id))
+      descriptors.push_back(&kf->features->points[static_cast<std::size_t>(index)].descriptor);
+  if (!descriptors.empty()) mp.descriptor = representative_descriptor(descriptors);
+}
+
+void Map::update_point_geometry(PointId id) {
+  auto pit = points_.find(id);
+  if (pit == points_.end()) return;
+  MapPoint& mp = pit->second;
   Eigen::Vector3d normal = Eigen::Vector3d::Zero();
   KeyFrameId ref = kNoId;
   for (const auto& [kf_id, index] : mp.observations) {
     const KeyFrame* kf = keyframe(kf_id);
     if (kf == nullptr) continue;
-    observed.push_back(&kf->features->points[static_cast<std::size_t>(index)]);
     normal += (mp.p_w - kf->camera_center()).normalized();
     if (ref == kNoId) ref = kf_id;
   }
-  if (observed.empty()) return;
+  if (ref == kNoId) return;
   mp.normal = normal.normalized();
   // Distance range from the reference (first) observation, as in ORB-SLAM2.
   const KeyFrame* ref_kf = keyframe(ref);
@@ -259,10 +291,6 @@ void Map::update_point_appearance(PointId id) {
   const int level = ref_feature.keypoint.level;
   mp.max_distance = dist * pyramid.scale[static_cast<std::size_t>(level)];
   mp.min_distance = mp.max_distance / pyramid.scale.back();
-  std::vector<const features::OrbDescriptor*> descriptors;
-  descriptors.reserve(observed.size());
-  for (const auto* f : observed) descriptors.push_back(&f->descriptor);
-  mp.descriptor = representative_descriptor(descriptors);
 }
 
 void Map::update_covisibility(KeyFrameId id) {
@@ -354,6 +382,7 @@ void Map::replace_line(LineId old_line, LineId new_line) {
   if (oit == lines_.end() || lines_.count(new_line) == 0) return;
   const MapLine old = oit->second;
   erase_line(old_line);
+  replaced_lines_[old_line] = new_line;
   for (const auto& [kf_id, index] : old.observations) add_line_observation(new_line, kf_id, index);
   MapLine& target = lines_.at(new_line);
   target.visible += old.visible;

@@ -86,6 +86,19 @@ BundleAdjustmentResult bundle_adjust(const PinholeCamera& camera, BundleAdjustme
     return plane_chi2(obs.measurement, n_c, plane.w() - n_c.dot(T_c_w.translation()));
   };
 
+  // A residual that cannot be evaluated at the start point stops Ceres before its first step:
+  // an observation whose point starts behind its camera is an outlier from the start.
+  for (std::size_t k = 0; k < problem.observations.size(); ++k) {
+    const auto& obs = problem.observations[k];
+    const SE3 T_c_w = block_to_pose(&poses[static_cast<std::size_t>(obs.pose) * kPoseSize]);
+    if (!((T_c_w * problem.points[static_cast<std::size_t>(obs.point)]).z() > kMinPointDepth)) {
+      result.inlier[k] = false;
+      ++result.behind_camera;
+    }
+  }
+  const std::vector<Eigen::Vector3d> points_before = problem.points;
+  const std::vector<BundleAdjustmentProblem::Line> lines_before = problem.lines;
+  const std::vector<Eigen::Vector4d> planes_before = problem.planes;
   for (int stage = 0; stage < 2; ++stage) {
     const bool robust = stage == 0;
     const int iterations = robust ? options.robust_iterations : options.refine_iterations;
@@ -149,6 +162,13 @@ BundleAdjustmentResult bundle_adjust(const PinholeCamera& camera, BundleAdjustme
     solver_options.callbacks.push_back(&callback);
     ceres::Solver::Summary summary;
     ceres::Solve(solver_options, &ceres_problem, &summary);
+    if (!summary.IsSolutionUsable()) {
+      problem.points = points_before;
+      problem.lines = lines_before;
+      problem.planes = planes_before;
+      result.failed = true;
+      return result;
+    }
     if (stage == 0) result.initial_cost = summary.initial_cost;
     result.final_cost = summary.final_cost;
     result.iterations += static_cast<int>(summary.iterations.size());

@@ -125,6 +125,8 @@ PoseGraphResult optimize_pose_graph(PoseGraphProblem& problem, const PoseGraphOp
   result.initial_cost = summary.initial_cost;
   result.final_cost = summary.final_cost;
   result.converged = summary.termination_type == ceres::CONVERGENCE;
+  result.failed = !summary.IsSolutionUsable();
+  if (result.failed) return result;
   for (std::size_t k = 0; k < n; ++k)
     if (used[k] && !problem.fixed[k]) problem.poses[k] = block_to_pose(&blocks[k * kPoseSize]);
   return result;

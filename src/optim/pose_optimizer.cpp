@@ -64,9 +64,17 @@ PoseOptimizationResult optimize_pose(const PinholeCamera& camera, const SE3& ini
     ceres::Problem ceres_problem(problem_options);
     ceres_problem.AddParameterBlock(pose, kPoseSize, &manifold);
     int active = 0;
+    const SE3 T_start = block_to_pose(pose);
     for (std::size_t i = 0; i < points.size(); ++i) {
       if (!result.inlier[i]) continue;
       const auto& obs = points[i];
+      // A residual that cannot be evaluated at the start point stops Ceres before its first
+      // step: such a point is an outlier of this round, never a reason to keep the start pose.
+      if (!((T_start * obs.p_w).z() > kMinPointDepth)) {
+        result.inlier[i] = false;
+        ++result.behind_camera;
+        continue;
+      }
       if (obs.measurement.has_depth()) {
         ceres_problem.AddResidualBlock(
             new PoseOnlyReprojectionError<3>(camera, obs.measurement, obs.p_w),
@@ -110,6 +118,11 @@ PoseOptimizationResult optimize_pose(const PinholeCamera& camera, const SE3& ini
     if (active < 3) break;
     ceres::Solver::Summary summary;
     ceres::Solve(solver_options, &ceres_problem, &summary);
+    if (!summary.IsSolutionUsable()) {
+      pose_to_block(T_start, pose);
+      result.failed = true;
+      break;
+    }
 
     // Reclassify every observation, including earlier outliers, at the new pose.
     const SE3 T_c_w = block_to_pose(pose);

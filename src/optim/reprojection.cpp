@@ -51,7 +51,7 @@ bool ReprojectionError<kDim>::Evaluate(double const* const* parameters, double* 
   const Eigen::Vector3d p_w(parameters[1][0], parameters[1][1], parameters[1][2]);
   const Eigen::Vector3d p_c = transform_point(pose, p_w);
   const double z = p_c.z();
-  if (z <= 1e-6) return false;  // behind the camera: Ceres rejects the step
+  if (z <= kMinPointDepth) return false;  // behind the camera: Ceres rejects the step
   const double inv_z = 1.0 / z;
   const double u = fx_ * p_c.x() * inv_z + cx_;
   const double v = fy_ * p_c.y() * inv_z + cy_;
@@ -101,7 +101,7 @@ bool PoseOnlyReprojectionError<kDim>::Evaluate(double const* const* parameters, 
 
 double reprojection_chi2(const PinholeCamera& camera, const PointMeasurement& m,
                          const Eigen::Vector3d& p_c) {
-  if (p_c.z() <= 1e-6) return std::numeric_limits<double>::infinity();
+  if (p_c.z() <= kMinPointDepth) return std::numeric_limits<double>::infinity();
   const Eigen::Vector2d uv = camera.project(p_c);
   double chi2 = (uv - m.uv).squaredNorm() * m.information;
   if (m.has_depth()) {

@@ -50,7 +50,8 @@ void ModelDetectionSource::submit(std::uint64_t frame_id, double, const cv::Mat&
         return;  // not yet due
     }
     last_submitted_ = frame_id;
-    job_.emplace(frame_id, bgr);
+    // The detector's own copy: the caller may reuse its buffer as soon as this returns.
+    job_.emplace(frame_id, bgr.clone());
   }
   cv_.notify_all();
 }

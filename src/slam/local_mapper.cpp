@@ -39,7 +39,6 @@ void LocalMapper::process(KeyFrameRequest request, StageTimes* times) {
   fuse_neighbours(id);
   local.add("map_fuse", watch.elapsed_ms());
   watch.restart();
-  abort_ba_ = false;
   local_bundle_adjustment(id);
   merge_planes();
   local.add("local_ba", watch.elapsed_ms());
@@ -173,6 +172,10 @@ void LocalMapper::run() {
       request = std::move(queue_.front());
       queue_.pop_front();
       busy_ = true;
+      // Cleared here, under the queue's mutex, where the request is taken: a keyframe or task
+      // that arrives from now on aborts this keyframe's BA (enqueue and run_task set the flag
+      // after queueing). Cleared later, it could wipe an abort set in between.
+      abort_ba_ = false;
     }
     process(std::move(request));
     std::lock_guard<std::mutex> lock(queue_mutex_);
@@ -211,17 +214,19 @@ void LocalMapper::insert_keyframe(const KeyFrameRequest& request) {
   if (vocabulary_) kf.bow = bag_of_words(kf);
   const map::KeyFrameId id = map_.add_keyframe(std::move(kf));
   for (std::size_t i = 0; i < request.landmarks.size(); ++i) {
-    const map::PointId p = request.landmarks[i];
-    if (p == map::kNoId || map_.point(p) == nullptr) continue;
+    // A landmark fused into another since the request was made: the association goes to the
+    // point that replaced it (else the feature would make a duplicate point).
+    const map::PointId p = map_.resolve_point(request.landmarks[i]);
+    if (p == map::kNoId || map_.point(p)->observations.count(id) != 0) continue;
     map_.add_observation(p, id, static_cast<int>(i));
     map_.update_point_appearance(p);
   }
   const SE3 T_w_c = map_.keyframe(id)->T_c_w.inverse();
   const auto& lines = request.frame.features->lines;
   for (std::size_t i = 0; i < request.line_landmarks.size(); ++i) {
-    const map::LineId l = request.line_landmarks[i];
+    const map::LineId l = map_.resolve_line(request.line_landmarks[i]);
     const map::MapLine* ml = l != map::kNoId ? map_.line(l) : nullptr;
-    if (ml == nullptr) continue;
+    if (ml == nullptr || ml->observations.count(id) != 0) continue;
     map_.add_line_observation(l, id, static_cast<int>(i));
     map_.update_line_appearance(l);
     // A longer view of the same line extends it, when its 3D fit agrees with the map line.
@@ -561,6 +566,10 @@ void LocalMapper::bundle_adjust_keyframes(const std::vector<map::KeyFrameId>& lo
   MapAdjustment adjustment = build_adjustment(map_, local, options_.depth_weight, tracker_options_);
   if (adjustment.empty()) return;
   const auto result = optim::bundle_adjust(camera_, adjustment.problem, ba_options, abort);
+  if (result.failed) {
+    ++ba_failures_;  // nothing to apply: the map keeps its estimate
+    return;
+  }
   auto lock = map_.write_lock();
   apply_adjustment(map_, adjustment, result);
 }
@@ -660,8 +669,18 @@ bool LocalMapper::close_loop(const LoopClosure& loop, const LoopOptions& options
     }
   }
   {
+    // The loop's own keyframes move with their landmarks in one step, then take the old
+    // place's landmarks: tracking, which works around them, sees a consistent local map now,
+    // and the whole map once the pose graph is solved (one write lock each).
     auto lock = map_.write_lock();
-    for (const auto& [g, T] : corrected) map_.set_keyframe_pose(g, T);
+    map::MapCorrection local;
+    local.listed_only = true;
+    for (const auto& [g, T] : corrected) {
+      local.before.emplace(g, before.at(g));
+      local.after.emplace(g, T);
+    }
+    map::apply_correction(map_, local);
+    corrected_version_ = map_.version();
     // The verified matches first: the new keyframe's feature takes the old place's point.
     for (const auto& [feature, point] : loop.matches) {
       const map::KeyFrame* kf = map_.keyframe(loop.keyframe);
@@ -730,10 +749,18 @@ bool LocalMapper::close_loop(const LoopClosure& loop, const LoopOptions& options
         add_edge(id, other, false);
     }
   }
-  optim::optimize_pose_graph(graph, options.pose_graph);
-
+  // The graph starts from the map as it now stands: the loop's keyframes corrected, the others
+  // where they were.
+  std::unordered_map<map::KeyFrameId, SE3> now;
+  for (map::KeyFrameId id : ids)
+    now.emplace(id, graph.poses[static_cast<std::size_t>(index.at(id))]);
+  if (optim::optimize_pose_graph(graph, options.pose_graph).failed) {
+    event.pose_graph_failed = true;
+    event.correct_ms = watch.elapsed_ms();
+    return true;  // the loop's keyframes were corrected and fused: the loop stands
+  }
   map::MapCorrection correction;
-  correction.before = std::move(before);
+  correction.before = std::move(now);
   for (map::KeyFrameId id : ids)
     correction.after.emplace(id, graph.poses[static_cast<std::size_t>(index.at(id))]);
   correct(correction);

@@ -135,6 +135,7 @@ void LoopCloser::process(map::KeyFrameId keyframe) {
     {
       std::lock_guard<std::mutex> guard(stats_mutex_);
       stats_.events.push_back(event);
+      if (event.pose_graph_failed) ++stats_.pose_graph_failed;
     }
     if (event.accepted) {
       last_loop_ = keyframe;
@@ -328,7 +329,8 @@ std::optional<LoopClosure> LoopCloser::verify(map::KeyFrameId id, map::KeyFrameI
     std::vector<std::pair<int, map::PointId>> pairs;
     for (std::size_t k = 0; k < p_w.size(); ++k)
       if (inlier[k]) pairs.emplace_back(feature_of[k], point_of[k]);
-    best_T = optimise(pairs, best_T).T_c_w;
+    // Without a usable solution the RANSAC pose stands; the inlier count below judges it.
+    if (const auto refined = optimise(pairs, best_T); !refined.failed) best_T = refined.T_c_w;
     count_inliers(best_T, &inlier);
   }
   LoopClosure loop;
@@ -415,17 +417,20 @@ void LoopCloser::full_bundle_adjustment() {
   }
   if (adjustment.empty()) return;
   const std::vector<SE3> before = adjustment.problem.poses;
+  const std::vector<Eigen::Vector3d> points_before = adjustment.problem.points;
   optim::BundleAdjustmentOptions ba;
   ba.robust_iterations = options_.full_ba_iterations;
   ba.refine_iterations = options_.full_ba_iterations;
   const auto result = optim::bundle_adjust(camera_, adjustment.problem, ba, &abort_ba_);
-  if (!result.aborted) {
-    const map::MapCorrection correction = correction_of(adjustment, result, before);
+  if (!result.aborted && !result.failed) {
+    const map::MapCorrection correction = correction_of(adjustment, result, before, points_before);
     mapper_.run_task([&] { mapper_.correct(correction); });
   }
   std::lock_guard<std::mutex> guard(stats_mutex_);
   if (result.aborted) {
     ++stats_.full_ba_aborted;
+  } else if (result.failed) {
+    ++stats_.full_ba_failed;
   } else {
     ++stats_.full_ba_runs;
     stats_.full_ba_ms.push_back(watch.elapsed_ms());

@@ -131,9 +131,12 @@ MapAdjustment build_adjustment(const map::Map& map, const std::vector<map::KeyFr
 
 void apply_adjustment(map::Map& map, const MapAdjustment& a,
                       const optim::BundleAdjustmentResult& result) {
+  std::unordered_set<map::PointId> observations_changed;
   for (std::size_t k = 0; k < a.observation_ids.size(); ++k)
-    if (!result.inlier[k])
+    if (!result.inlier[k]) {
       map.erase_observation(a.observation_ids[k].second, a.observation_ids[k].first);
+      observations_changed.insert(a.observation_ids[k].second);
+    }
   for (std::size_t k = 0; k < a.line_observation_ids.size(); ++k)
     if (!result.line_inlier[k])
       map.erase_line_observation(a.line_observation_ids[k].second, a.line_observation_ids[k].first);
@@ -147,7 +150,11 @@ void apply_adjustment(map::Map& map, const MapAdjustment& a,
   for (std::size_t k = 0; k < a.point_ids.size(); ++k) {
     if (map.point(a.point_ids[k]) == nullptr) continue;
     map.set_point_position(a.point_ids[k], a.problem.points[k]);
-    map.update_point_appearance(a.point_ids[k]);
+    // The descriptor depends on the observations only.
+    if (observations_changed.count(a.point_ids[k]) != 0)
+      map.update_point_appearance(a.point_ids[k]);
+    else
+      map.update_point_geometry(a.point_ids[k]);
   }
   for (std::size_t k = 0; k < a.line_ids.size(); ++k)
     if (const auto ends = onto_line(a.problem.lines[k], a.lines_before[k]))
@@ -159,7 +166,8 @@ void apply_adjustment(map::Map& map, const MapAdjustment& a,
 
 map::MapCorrection correction_of(const MapAdjustment& solved,
                                  const optim::BundleAdjustmentResult& result,
-                                 const std::vector<SE3>& poses_before) {
+                                 const std::vector<SE3>& poses_before,
+                                 const std::vector<Eigen::Vector3d>& points_before) {
   map::MapCorrection c;
   for (std::size_t k = 0; k < solved.observation_ids.size(); ++k)
     if (!result.inlier[k]) c.point_outliers.push_back(solved.observation_ids[k]);
@@ -172,8 +180,10 @@ map::MapCorrection correction_of(const MapAdjustment& solved,
     c.before.emplace(kf_id, poses_before[k]);
     c.after.emplace(kf_id, solved.problem.poses[k]);
   }
-  for (std::size_t k = 0; k < solved.point_ids.size(); ++k)
+  for (std::size_t k = 0; k < solved.point_ids.size(); ++k) {
     c.points.emplace(solved.point_ids[k], solved.problem.points[k]);
+    c.points_before.emplace(solved.point_ids[k], points_before[k]);
+  }
   for (std::size_t k = 0; k < solved.line_ids.size(); ++k)
     if (const auto ends = onto_line(solved.problem.lines[k], solved.lines_before[k]))
       c.lines.emplace(solved.line_ids[k], *ends);

@@ -44,9 +44,11 @@ MapAdjustment build_adjustment(const map::Map& map, const std::vector<map::KeyFr
 void apply_adjustment(map::Map& map, const MapAdjustment& a,
                       const optim::BundleAdjustmentResult& result);
 
-/// The correction that an adjustment's solved problem makes (poses before: as built).
+/// The correction that an adjustment's solved problem makes (poses and points before: as
+/// built, so that what the map refined meanwhile keeps its refinement; see MapCorrection).
 map::MapCorrection correction_of(const MapAdjustment& solved,
                                  const optim::BundleAdjustmentResult& result,
-                                 const std::vector<SE3>& poses_before);
+                                 const std::vector<SE3>& poses_before,
+                                 const std::vector<Eigen::Vector3d>& points_before);
 
 }  // namespace mcslam::slam

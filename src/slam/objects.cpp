@@ -979,6 +979,13 @@ MoverResult ObjectHandler::find_movers(const Frame& frame, const SE3& T_c_w,
   return result;
 }
 
+void ObjectHandler::move_world(const SE3& W) {
+  const SE3 W_inv = W.inverse();
+  for (auto* frames : {&recent_, &history_})
+    for (PastFrame& f : *frames)
+      if (f.T_c_w) f.T_c_w = (*f.T_c_w) * W_inv;
+}
+
 void ObjectHandler::remember(const Frame& frame, const SE3& T_c_w) {
   if (!recent_.empty() && recent_.front().id == frame.id) recent_.front().T_c_w = T_c_w;
   history_.push_front(PastFrame{frame.id, frame.features, T_c_w});

@@ -58,7 +58,7 @@ ReadoutReport System::readout_report() const {
   return r;
 }
 
-System::~System() { finish(); }
+System::~System() { stop_threads(); }
 
 void System::set_detection_source(std::unique_ptr<DetectionSource> source, bool wait) {
   detections_ = std::move(source);
@@ -147,7 +147,7 @@ FrameResult System::process(const PreparedImages& images, double timestamp,
   const cv::Mat& rgb = images.rgb;
   if (!images.problem.empty() || finished_) {
     result.state = TrackingState::kLost;
-    records_.push_back(record);
+    add_record(record);
     return result;
   }
   if (images.prepare_ms >= 0.0) result.times.add_concurrent("prepare", images.prepare_ms);
@@ -171,6 +171,7 @@ FrameResult System::process(const PreparedImages& images, double timestamp,
   const bool sequential = options_.sequential;
   TrackingOutcome outcome = tracker_->track(frame, sequential || mapper_->idle(),
                                             sequential ? 0 : mapper_->queue_size(), &result.times);
+  pose_failures_ = tracker_->solver_failures();
   result.state = outcome.state;
   result.relocalised = outcome.relocalised;
   result.relocalisation = outcome.relocalisation;
@@ -212,7 +213,7 @@ FrameResult System::process(const PreparedImages& images, double timestamp,
       mapper_->enqueue(std::move(*outcome.keyframe));
     }
   }
-  records_.push_back(record);
+  add_record(record);
   return result;
 }
 
@@ -305,9 +306,7 @@ std::vector<FrameMotion::MovingRegion> System::expected_moving_regions(double ti
   return out;
 }
 
-void System::finish() {
-  if (finished_) return;
-  finished_ = true;
+void System::stop_threads() {
   // The mapper's queue first (its keyframes go to the loop closer), then the loop closer (its
   // corrections run on the mapper's thread), then the mapper.
   if (loop_closer_) {
@@ -315,14 +314,43 @@ void System::finish() {
     loop_closer_->finish();
   }
   mapper_->finish();
+}
+
+void System::finish() {
+  if (finished_) return;
+  finished_ = true;
+  stop_threads();
   if (options_.mapper.global_ba_iterations > 0 && !options_.localize)
     mapper_->global_bundle_adjustment();
 }
 
+void System::add_record(const FrameRecord& record) {
+  std::lock_guard<std::mutex> guard(records_mutex_);
+  records_.push_back(record);
+}
+
+std::vector<System::FrameRecord> System::records() const {
+  std::lock_guard<std::mutex> guard(records_mutex_);
+  return records_;
+}
+
+SolverStatistics System::solver_statistics() const {
+  SolverStatistics s;
+  s.pose_failures = pose_failures_.load();
+  s.bundle_adjustment_failures = mapper_->ba_failures();
+  if (loop_closer_) {
+    const LoopStatistics loops = loop_closer_->statistics();
+    s.full_ba_failures = loops.full_ba_failed;
+    s.pose_graph_failures = loops.pose_graph_failed;
+  }
+  return s;
+}
+
 Trajectory System::trajectory() const {
   Trajectory out;
+  const std::vector<FrameRecord> frames = records();
   auto lock = map_->read_lock();
-  for (const FrameRecord& r : records_) {
+  for (const FrameRecord& r : frames) {
     if (!r.tracked) continue;
     const auto T_ref_w = map_->keyframe_pose_T_c_w(r.reference);
     const SE3 T_c_w = T_ref_w ? r.T_c_ref * (*T_ref_w) : r.T_c_w;
@@ -333,7 +361,7 @@ Trajectory System::trajectory() const {
 
 Trajectory System::online_trajectory() const {
   Trajectory out;
-  for (const FrameRecord& r : records_)
+  for (const FrameRecord& r : records())
     if (r.tracked) out.push_back({r.timestamp, r.T_c_w.inverse()});
   return out;
 }

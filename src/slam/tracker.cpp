@@ -130,7 +130,11 @@ Tracker::Tracker(const PinholeCamera& camera, const TrackerOptions& options, con
 
 TrackingOutcome Tracker::track(const Frame& frame, bool mapper_idle, std::size_t mapper_queue,
                                StageTimes* times) {
+  // One shared lock for the whole frame: every read sees one state of the map, never a
+  // correction half applied (the mapper writes between frames, or waits for this one).
+  const auto map_lock = map_.read_lock();
   Stopwatch watch;
+  follow_map();
   if (state_ == TrackingState::kNotInitialized) {
     TrackingOutcome out = initialize(frame);
     if (times) times->add("initialize", watch.elapsed_ms());
@@ -312,12 +316,26 @@ Eigen::Vector3d Tracker::angular_velocity() const {
 
 std::optional<SE3> Tracker::keyframe_pose(map::KeyFrameId id) const {
   {
-    auto lock = map_.read_lock();
     if (auto T = map_.keyframe_pose_T_c_w(id)) return T;
   }
   if (const auto it = pending_keyframes_.find(id); it != pending_keyframes_.end())
     return it->second;
   return std::nullopt;
+}
+
+void Tracker::follow_map() {
+  if (!last_) return;
+  const std::optional<SE3> T_last = last_frame_pose();
+  if (!T_last) return;
+  // The last frame hangs on its reference keyframe; when bundle adjustment or a correction (loop,
+  // merged full BA) moved that keyframe, the world the tracker's own history was recorded in
+  // moved with it: W maps positions of the old world to the map's current one.
+  const SE3 W = T_last->inverse() * last_->T_c_w;
+  if (W.translation().norm() < 1e-9 && rotation_angle(W.quaternion()) < 1e-9) return;
+  last_->T_c_w = *T_last;
+  for (auto& track : last_->tracks)
+    for (Eigen::Vector3d& p : track) p = W * p;
+  objects_.move_world(W);
 }
 
 std::optional<SE3> Tracker::last_frame_pose() const {
@@ -344,7 +362,6 @@ int Tracker::search_last_frame(const Frame& frame, const SE3& T_c_w, double radi
   const SE3 T_w_last = last_frame_pose()->inverse();
   std::vector<std::optional<Eigen::Vector3d>> world(last_points.size());
   {
-    auto lock = map_.read_lock();
     for (std::size_t i = 0; i < last_points.size(); ++i) {
       if (last_->landmarks[i] != map::kNoId) {
         if (moved_set_.count(last_->landmarks[i]) != 0) continue;
@@ -386,7 +403,7 @@ int Tracker::search_last_frame(const Frame& frame, const SE3& T_c_w, double radi
     if (source[j] < 0) ++count;
     best_distance[j] = best;
     source[j] = static_cast<int>(i);
-    // A landmark the mapper culls meanwhile is dropped by track_local_map (under the lock).
+    // A landmark the mapper culled since the last frame is dropped by track_local_map.
     matches[j].landmark = last_->landmarks[i];
     matches[j].p_w = *world[i];
     matches[j].active = true;
@@ -417,7 +434,6 @@ int Tracker::search_last_lines(const Frame& frame, const SE3& T_c_w, double dist
   std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>> world;
   std::vector<map::LineId> landmark;
   {
-    auto lock = map_.read_lock();
     for (std::size_t i = 0; i < last_lines.size(); ++i) {
       std::pair<Eigen::Vector3d, Eigen::Vector3d> w;
       map::LineId id = last_->line_landmarks[i];
@@ -499,10 +515,7 @@ bool Tracker::track_last_frame(const Frame& frame, const SE3& prediction, Associ
     n_lines = search_last_lines(frame, prediction, 2.0, assoc.lines);
   }
   int n_planes = 0;
-  {
-    auto lock = map_.read_lock();
-    n_planes = search_planes(frame, prediction, assoc.planes);
-  }
+  { n_planes = search_planes(frame, prediction, assoc.planes); }
   if (n + n_lines + options_.plane_inlier_weight * n_planes < options_.min_motion_matches)
     return false;
   T_c_w = prediction;
@@ -512,7 +525,6 @@ bool Tracker::track_last_frame(const Frame& frame, const SE3& prediction, Associ
 bool Tracker::track_reference_keyframe(const Frame& frame, Associations& assoc, SE3& T_c_w) {
   const std::optional<SE3> T_last = last_frame_pose();
   if (!T_last) return false;
-  auto lock = map_.read_lock();
   const map::KeyFrame* ref =
       map_.keyframe(reference_ != map::kNoId ? reference_ : map_.last_keyframe_id());
   if (ref == nullptr) return false;
@@ -554,7 +566,6 @@ bool Tracker::track_reference_keyframe(const Frame& frame, Associations& assoc, 
         LineMatch{ml->id, ml->start_w, ml->end_w, true, false};
   }
   const int n_planes = search_planes(frame, *T_last, assoc.planes);
-  lock.unlock();
   const int n = static_cast<int>(found.size() + line_found.size());
   if (n + options_.plane_inlier_weight * n_planes < options_.min_motion_matches) return false;
   T_c_w = *T_last;
@@ -566,7 +577,7 @@ int Tracker::weighted_inliers(const Associations& assoc) const {
          options_.plane_inlier_weight * assoc.inlier_planes();
 }
 
-int Tracker::optimize(const Frame& frame, Associations& assoc, SE3& T_c_w) const {
+int Tracker::optimize(const Frame& frame, Associations& assoc, SE3& T_c_w) {
   optim::PoseProblem problem;
   std::vector<std::size_t> point_index, line_index, plane_index;
   const auto& features = *frame.features;
@@ -600,6 +611,14 @@ int Tracker::optimize(const Frame& frame, Associations& assoc, SE3& T_c_w) const
   problem.constrained_points = objects_.constrained_points();
   problem.constrained_lines = objects_.constrained_lines();
   const auto result = optim::optimize_pose(camera_, T_c_w, problem, options_.pose);
+  if (result.failed) {
+    // No usable solution: the pose is not an estimate, and nothing is an inlier of it.
+    ++solver_failures_;
+    for (auto& m : assoc.points) m.outlier = m.outlier || m.active;
+    for (auto& m : assoc.lines) m.outlier = m.outlier || m.active;
+    for (auto& m : assoc.planes) m.outlier = m.outlier || m.active;
+    return 0;
+  }
   T_c_w = result.T_c_w;
   // Features left out (on moving objects) count as outliers everywhere downstream: no landmark,
   // no statistics, no depth point for the next frame.
@@ -802,7 +821,6 @@ int Tracker::search_local_lines(const Frame& frame, const SE3& T_c_w,
 int Tracker::track_local_map(const Frame& frame, Associations& assoc, SE3& T_c_w,
                              double radius_factor) {
   {
-    auto lock = map_.read_lock();
     // Drop outliers of the frame-to-frame step and landmarks the mapper has culled since.
     for (Match& m : assoc.points) {
       if (m.active && m.outlier) m = Match{};
@@ -896,7 +914,6 @@ bool Tracker::relocalise(const Frame& frame, Associations& assoc, SE3& T_c_w) {
   const auto n = static_cast<std::size_t>(options_.relocalisation_candidates);
   Stopwatch watch;
   {
-    auto lock = map_.read_lock();
     if (map_.num_keyframes() == 0) return false;
     const place::Database* database = map_.database();
     if (vocabulary_ && database != nullptr && database->size() > 0) {
@@ -1002,10 +1019,7 @@ bool Tracker::relocalise(const Frame& frame, Associations& assoc, SE3& T_c_w) {
 bool Tracker::need_keyframe(const Frame& frame, const Associations& assoc, bool mapper_idle,
                             std::size_t mapper_queue) const {
   std::uint64_t n_keyframes = 0;
-  {
-    auto lock = map_.read_lock();
-    n_keyframes = static_cast<std::uint64_t>(map_.num_keyframes());
-  }
+  { n_keyframes = static_cast<std::uint64_t>(map_.num_keyframes()); }
   if (frame.id < last_relocalisation_frame_ +
                      static_cast<std::uint64_t>(options_.max_frames_between_keyframes) &&
       last_relocalisation_frame_ > 0 &&
@@ -1017,7 +1031,6 @@ bool Tracker::need_keyframe(const Frame& frame, const Associations& assoc, bool 
   // Landmarks of the reference keyframe that are well established.
   int reference_matches = 0;
   {
-    auto lock = map_.read_lock();
     // Observed by at least two keyframes (one while the map is that young).
     const std::size_t min_obs = n_keyframes <= 2 ? 1 : 2;
     if (const map::KeyFrame* ref = map_.keyframe(reference_)) {
@@ -1060,7 +1073,6 @@ KeyFrameRequest Tracker::make_keyframe(const Frame& frame, const Associations& a
   request.frame = frame;
   request.T_c_w = T_c_w;
   {
-    auto lock = map_.read_lock();
     request.map_version = map_.version();
     if (const map::KeyFrame* ref = map_.keyframe(reference_)) {
       request.reference = reference_;
@@ -1116,7 +1128,6 @@ void Tracker::remember_last_frame(const Frame& frame, const Associations& assoc,
   last.T_c_ref = T_ref_w ? T_c_w * T_ref_w->inverse() : SE3();
   {
     // Keyframes the mapper has taken in no longer need their pending pose.
-    auto lock = map_.read_lock();
     for (auto it = pending_keyframes_.begin(); it != pending_keyframes_.end();)
       it = map_.keyframe(it->first) != nullptr ? pending_keyframes_.erase(it) : std::next(it);
   }

@@ -493,5 +493,89 @@ TEST(MapCorrection, EverythingFollowsTheKeyframeItHangsOn) {
   EXPECT_EQ(map.point(p0)->observations.count(1), 0u);
 }
 
+// A keyframe request made before a fusion names the point that was fused away: the map forwards
+// it to the point that replaced it, along a chain of fusions, and to nothing once that is gone.
+TEST(Map, AFusedPointForwardsToItsReplacement) {
+  Map map;
+  const KeyFrameId a = map.add_keyframe(make_keyframe(0, 4));
+  const KeyFrameId b = map.add_keyframe(make_keyframe(1, 4));
+  const PointId p = map.add_point(Eigen::Vector3d(0, 0, 3), a, 0);
+  const PointId q = map.add_point(Eigen::Vector3d(0.01, 0, 3), b, 0);
+  const PointId r = map.add_point(Eigen::Vector3d(0.02, 0, 3), b, 1);
+  EXPECT_EQ(map.resolve_point(p), p);
+  map.replace_point(p, q);
+  EXPECT_EQ(map.resolve_point(p), q);
+  map.replace_point(q, r);
+  EXPECT_EQ(map.resolve_point(p), r);
+  EXPECT_EQ(map.resolve_point(q), r);
+  map.erase_point(r);
+  EXPECT_EQ(map.resolve_point(p), kNoId);
+  EXPECT_EQ(map.resolve_point(12345), kNoId);
+  EXPECT_EQ(map.resolve_point(kNoId), kNoId);
+}
+
+// A full bundle adjustment solved from a snapshot, merged after local BA refined a keyframe and
+// a point: the snapshot's solution moves them by its correction, it does not overwrite them.
+TEST(MapCorrection, ASnapshotSolutionKeepsWhatLocalBaRefinedSince) {
+  Map map;
+  const SE3 T1 = pose(0, 1, 0, 0.2, {0.5, 0.0, 0.1});
+  map.add_keyframe(make_keyframe(0, 4));
+  map.add_keyframe(make_keyframe(1, 4, T1));
+  const PointId kept = map.add_point({0.0, 0.0, 2.0}, 1, 0);
+  const PointId refined = map.add_point({0.3, 0.1, 2.5}, 1, 1);
+  map.add_observation(kept, 0, 0);
+  map.add_observation(refined, 0, 1);
+  for (KeyFrameId k : {0u, 1u}) map.update_covisibility(k);
+
+  // The snapshot: keyframe 1 at T1, both points where they are. Its solution moves keyframe 1 by
+  // a small correction and both points.
+  MapCorrection c;
+  const SE3 delta = pose(1, 0, 0, 0.03, {0.02, -0.01, 0.0});
+  c.before = {{0, SE3()}, {1, T1}};
+  c.after = {{0, SE3()}, {1, delta * T1}};
+  c.points = {{kept, {0.01, 0.0, 2.0}}, {refined, {0.31, 0.1, 2.5}}};
+  c.points_before = {{kept, {0.0, 0.0, 2.0}}, {refined, {0.3, 0.1, 2.5}}};
+  // Meanwhile local BA refined keyframe 1 and the second point.
+  const SE3 T1_refined = pose(0, 0, 1, 0.01, {0.0, 0.005, 0.0}) * T1;
+  map.set_keyframe_pose(1, T1_refined);
+  const Eigen::Vector3d refined_at(0.305, 0.1, 2.49);
+  map.set_point_position(refined, refined_at);
+  apply_correction(map, c);
+
+  // Keyframe 1 keeps its refinement, moved by the snapshot's correction: T1' T1^-1 (delta T1).
+  expect_pose_near(map.keyframe(1)->T_c_w, (T1_refined * T1.inverse() * delta * T1).matrix());
+  // The untouched point takes the solution; the refined one moves with its keyframe.
+  EXPECT_LT((map.point(kept)->p_w - Eigen::Vector3d(0.01, 0.0, 2.0)).norm(), 1e-12);
+  const SE3 motion = (delta * T1).inverse() * T1;  // world motion of keyframe 1's landmarks
+  EXPECT_LT((map.point(refined)->p_w - motion * refined_at).norm(), 1e-12);
+}
+
+// The first step of a loop correction moves only the loop's keyframes and their landmarks.
+TEST(MapCorrection, ListedOnlyMovesTheListedKeyframesAndWhatHangsOnThem) {
+  Map map;
+  const SE3 T1 = pose(0, 1, 0, 0.2, {0.5, 0.0, 0.1});
+  const SE3 T2 = pose(0, 1, 0, 0.4, {1.0, 0.1, 0.2});
+  map.add_keyframe(make_keyframe(0, 4));
+  map.add_keyframe(make_keyframe(1, 4, T1));
+  map.add_keyframe(make_keyframe(2, 4, T2));
+  const PointId p1 = map.add_point({0.3, 0.1, 2.5}, 1, 0);
+  const PointId p2 = map.add_point({0.6, -0.1, 3.0}, 2, 0);
+  map.add_observation(p1, 2, 1);
+  for (KeyFrameId k : {0u, 1u, 2u}) map.update_covisibility(k);
+  const std::uint64_t corrections = map.corrections();
+  MapCorrection c;
+  c.listed_only = true;
+  const SE3 T2_new = pose(1, 0, 0, 0.05, {0.02, -0.03, 0.01}) * T2;
+  c.before = {{2, T2}};
+  c.after = {{2, T2_new}};
+  apply_correction(map, c);
+  EXPECT_EQ(map.corrections(), corrections + 1);
+  expect_pose_near(map.keyframe(1)->T_c_w, T1.matrix());
+  expect_pose_near(map.keyframe(2)->T_c_w, T2_new.matrix());
+  EXPECT_LT((map.point(p1)->p_w - Eigen::Vector3d(0.3, 0.1, 2.5)).norm(), 1e-12);
+  EXPECT_LT((map.point(p2)->p_w - T2_new.inverse() * (T2 * Eigen::Vector3d(0.6, -0.1, 3.0))).norm(),
+            1e-12);
+}
+
 }  // namespace
 }  // namespace mcslam::map

@@ -427,5 +427,89 @@ TEST(BundleAdjustment, AbortFlagStopsEarly) {
   EXPECT_TRUE(result.aborted);
 }
 
+// A matched landmark that the start pose puts behind the camera (a wrong match, or a point seen
+// before a loop correction moved the map) must not stop the solver: Ceres fails a solve whose
+// residuals cannot be evaluated at the start point, and the pose would stay unoptimised.
+TEST(PoseOptimizer, APointBehindTheCameraAtTheStartIsAnOutlierNotAFailure) {
+  for (const unsigned seed : {3u, 11u, 29u}) {
+    std::mt19937 rng(seed);
+    const PinholeCamera cam = test::make_camera();
+    Vector6d xi;
+    xi << 0.2, 0.1, -0.1, 0.05, -0.1, 0.1;
+    const SE3 truth = SE3::exp(xi);
+    auto obs = make_observations(cam, truth, 120, 0.5, rng);
+    Vector6d err;
+    err << 0.04, -0.03, 0.02, 0.02, -0.02, 0.01;
+    const SE3 initial = SE3::exp(err) * truth;
+    // Observation 7's landmark lies 0.5 m behind the camera at the start pose.
+    obs[7].p_w = initial.inverse() * Eigen::Vector3d(0.1, -0.2, -0.5);
+    const auto result = optimize_pose(cam, initial, obs, PoseOptimizerOptions{});
+    EXPECT_FALSE(result.failed) << "seed " << seed;
+    EXPECT_GE(result.behind_camera, 1) << "seed " << seed;
+    EXPECT_FALSE(result.inlier[7]) << "seed " << seed;
+    const auto [rotation, translation] = pose_error(result.T_c_w, truth);
+    EXPECT_LT(translation, 0.005) << "seed " << seed;
+    EXPECT_LT(rotation, 0.002) << "seed " << seed;
+  }
+}
+
+// The same in bundle adjustment: one observation whose point starts behind its camera used to
+// leave every pose and point where it was.
+TEST(BundleAdjustment, AnObservationBehindItsCameraIsDroppedAndTheRestConverges) {
+  std::mt19937 rng(17);
+  const PinholeCamera cam = test::make_camera();
+  BundleAdjustmentProblem problem;
+  std::vector<SE3> truth_poses;
+  for (int k = 0; k < 4; ++k) {
+    Vector6d xi;
+    xi << 0.1 * k, 0.02 * k, 0.0, 0.0, 0.05 * k, 0.0;
+    truth_poses.push_back(SE3::exp(xi));
+  }
+  std::uniform_real_distribution<double> x(-1.5, 1.5), y(-1.0, 1.0), z(2.0, 4.0);
+  std::normal_distribution<double> pix(0.0, 0.3), pos(0.0, 0.02), ang(0.0, 0.005);
+  std::vector<Eigen::Vector3d> truth_points;
+  for (int i = 0; i < 150; ++i) truth_points.emplace_back(x(rng), y(rng), z(rng));
+  for (int k = 0; k < 4; ++k) {
+    Vector6d e;
+    e << pos(rng), pos(rng), pos(rng), ang(rng), ang(rng), ang(rng);
+    problem.poses.push_back(k < 2 ? truth_poses[k] : SE3::exp(e) * truth_poses[k]);
+    problem.pose_fixed.push_back(k < 2);
+  }
+  for (const auto& p : truth_points)
+    problem.points.push_back(p + Eigen::Vector3d(pos(rng), pos(rng), pos(rng)));
+  for (int k = 0; k < 4; ++k)
+    for (int i = 0; i < 150; ++i) {
+      const Eigen::Vector3d p_c = truth_poses[k] * truth_points[i];
+      const Eigen::Vector2d uv = cam.project(p_c);
+      if (!cam.in_image(uv)) continue;
+      BundleAdjustmentProblem::Observation obs;
+      obs.pose = k;
+      obs.point = i;
+      obs.measurement.uv = uv + Eigen::Vector2d(pix(rng), pix(rng));
+      obs.measurement.u_right = cam.right_u(uv.x(), p_c.z()) + pix(rng);
+      obs.measurement.with_depth = true;
+      problem.observations.push_back(obs);
+    }
+  // A wrong association: pose 3 observes a point that is behind it.
+  problem.points.push_back(truth_poses[3].inverse() * Eigen::Vector3d(0.0, 0.0, -1.0));
+  BundleAdjustmentProblem::Observation wrong;
+  wrong.pose = 3;
+  wrong.point = static_cast<int>(problem.points.size()) - 1;
+  wrong.measurement.uv = Eigen::Vector2d(320.0, 240.0);
+  problem.observations.push_back(wrong);
+  BundleAdjustmentOptions options;
+  options.robust_iterations = 10;
+  options.refine_iterations = 10;
+  const auto result = bundle_adjust(cam, problem, options);
+  EXPECT_FALSE(result.failed);
+  EXPECT_EQ(result.behind_camera, 1);
+  EXPECT_FALSE(result.inlier.back());
+  for (int k = 2; k < 4; ++k) {
+    const auto [rotation, translation] = pose_error(problem.poses[k], truth_poses[k]);
+    EXPECT_LT(translation, 0.003) << "pose " << k;
+    EXPECT_LT(rotation, 0.002) << "pose " << k;
+  }
+}
+
 }  // namespace
 }  // namespace mcslam::optim

@@ -36,5 +36,30 @@ TEST(ModelDetectionSource, ARequiredFrameIsDetectedWhenNotDueOrTheDetectorIsBusy
   EXPECT_GE(source.pass_times_ms().size(), 2u);
 }
 
+// The detector's thread works on its own copy of the image: a capture loop may reuse its buffer
+// as soon as submit() returns (System::process hands the caller's image to it). The tiny model's
+// output is its input reshaped, so its boxes' scores are the image's values in its outer colour
+// channels: a magenta image gives boxes, a black one none. The first frame keeps the detector busy;
+// the second waits in the queue while the caller overwrites its buffer with black.
+TEST(ModelDetectionSource, TheCallersBufferMayBeReusedAsSoonAsSubmitReturns) {
+  test::TempDir dir("mcslam_detection_source_test");
+  const std::string path = dir.write("tiny.onnx", test::tiny_onnx(64, {1, 6, 2048}));
+  ModelDetectionSource source(perception::Detector(path), 1);
+  const cv::Mat magenta(64, 64, CV_8UC3, cv::Scalar(230, 40, 230));
+  source.submit(0, 0.0, magenta, true);
+  const auto first = source.collect(0, true);
+  ASSERT_TRUE(first.has_value());
+  ASSERT_FALSE(first->boxes.empty()) << "a magenta image gives boxes";
+  for (std::uint64_t frame = 1; frame <= 20; ++frame) {
+    cv::Mat buffer = magenta.clone();
+    source.submit(frame, 0.1 * static_cast<double>(frame), buffer, true);
+    buffer.setTo(cv::Scalar(0, 0, 0));  // the caller's next capture, into the same buffer
+    const auto boxes = source.collect(frame, true);
+    ASSERT_TRUE(boxes.has_value());
+    ASSERT_EQ(boxes->frame_id, frame);
+    EXPECT_EQ(boxes->boxes.size(), first->boxes.size()) << "frame " << frame;
+  }
+}
+
 }  // namespace
 }  // namespace mcslam::slam

@@ -2,7 +2,9 @@
 
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <cstdio>
+#include <thread>
 
 #include "mcslam/core/error.hpp"
 #include "mcslam/eval/metrics.hpp"
@@ -95,6 +97,41 @@ TEST(System, ThreadedMappingTracksToo) {
   const RunResult r = run(seq, options);
   EXPECT_EQ(r.tracked, 150);
   EXPECT_LT(eval::evaluate(seq.groundtruth, r.trajectory).ate.translation.rmse, 0.01);
+}
+
+// The trajectory and the statistics may be read from another thread (a viewer, a ROS publisher)
+// while frames are processed: ThreadSanitizer checks it (the readers copy the frame records
+// under their own lock).
+TEST(System, TrajectoryMayBeReadFromAnotherThreadWhileFramesAreProcessed) {
+  const auto& seq = test::rendered_sequence(150, false);
+  SystemOptions options;
+  options.sequential = false;
+  System system(seq.camera, options);
+  std::atomic<bool> done{false};
+  std::size_t longest = 0;
+  std::thread reader([&] {
+    while (!done) {
+      longest = std::max(longest, system.trajectory().size());
+      longest = std::max(longest, system.online_trajectory().size());
+      (void)system.keyframe_trajectory();
+      (void)system.solver_statistics();
+      (void)system.mapper_times();
+    }
+  });
+  int tracked = 0;
+  for (int i = 0; i < 60; ++i)
+    tracked += system.process(seq.frames[i].rgb, seq.frames[i].depth, seq.groundtruth[i].timestamp)
+                           .state == TrackingState::kOk
+                   ? 1
+                   : 0;
+  done = true;
+  reader.join();
+  system.finish();
+  EXPECT_EQ(tracked, 60);
+  EXPECT_LE(longest, 60u);
+  EXPECT_EQ(system.trajectory().size(), 60u);
+  const SolverStatistics solver = system.solver_statistics();
+  EXPECT_EQ(solver.pose_failures + solver.bundle_adjustment_failures, 0);
 }
 
 TEST(System, SequentialModeIsDeterministic) {

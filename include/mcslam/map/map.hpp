@@ -148,6 +148,13 @@ class Map {
   std::size_t num_planes() const { return planes_.size(); }
   const MapLine* line(LineId id) const;
   const MapPlane* plane(PlaneId id) const;
+  /// The point that stands for `id` now: `id` itself while it exists, else the point it was
+  /// fused into (replace_point), followed to the end; kNoId when that point is gone too. A
+  /// keyframe request made before a fusion keeps its association this way.
+  PointId resolve_point(PointId id) const;
+  LineId resolve_line(LineId id) const;
+  /// The number of corrections applied (map/correction.hpp).
+  std::uint64_t corrections() const { return corrections_; }
   const std::unordered_map<LineId, MapLine>& lines() const { return lines_; }
   const std::unordered_map<PlaneId, MapPlane>& planes() const { return planes_; }
   /// Up to `n` covisible keyframes of `id`, by decreasing weight (ties: increasing id).
@@ -184,6 +191,9 @@ class Map {
   void set_point_color(PointId id, const std::array<std::uint8_t, 3>& rgb);
   /// Recomputes descriptor, normal and distance range of a point from its observations.
   void update_point_appearance(PointId id);
+  /// Normal and distance range only: what changes when the point or its keyframes move (the
+  /// descriptor depends on the observations alone).
+  void update_point_geometry(PointId id);
   /// Recomputes the covisibility weights of `id` (and the reverse edges).
   void update_covisibility(KeyFrameId id);
   void add_tracking_statistics(PointId id, int visible, int found);
@@ -216,6 +226,7 @@ class Map {
   /// Moves every observation and the extent of `old_plane` to `new_plane`, then erases it.
   void replace_plane(PlaneId old_plane, PlaneId new_plane);
   void bump_version() { ++version_; }
+  void count_correction() { ++corrections_; }
 
   // --- sessions (map/session.hpp): what saving reads beyond the reads above, and restoring a
   // saved map exactly (ids, links and counters as they were) ---
@@ -279,6 +290,10 @@ class Map {
   PlaneId next_plane_id_ = 0;
   KeyFrameId last_keyframe_ = kNoId;
   std::uint64_t version_ = 0;
+  std::uint64_t corrections_ = 0;
+  // Forward links of fused landmarks (replaced -> replacement), for resolve_point/resolve_line.
+  std::unordered_map<PointId, PointId> replaced_points_;
+  std::unordered_map<LineId, LineId> replaced_lines_;
 };
 
 }  // namespace mcslam::map

@@ -63,6 +63,12 @@ struct BundleAdjustmentResult {
   std::vector<bool> line_inlier;
   std::vector<bool> plane_inlier;
   bool aborted = false;
+  /// Ceres found no usable solution: the problem's poses and landmarks are left as they were
+  /// given, and the caller must not apply them.
+  bool failed = false;
+  /// Point observations left out from the start: the point was behind the camera (or within
+  /// kMinPointDepth of its centre) at the initial estimate. They are outliers.
+  int behind_camera = 0;
   int iterations = 0;
   double initial_cost = 0.0;
   double final_cost = 0.0;

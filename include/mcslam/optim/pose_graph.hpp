@@ -44,6 +44,8 @@ struct PoseGraphResult {
   double initial_cost = 0.0;
   double final_cost = 0.0;
   bool converged = false;
+  /// Ceres found no usable solution: the problem's poses are left as they were given.
+  bool failed = false;
 };
 
 /// The cost of one edge over two 7-double pose blocks (automatic derivatives); the caller owns it.

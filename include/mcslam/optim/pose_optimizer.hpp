@@ -71,6 +71,13 @@ struct PoseOptimizationResult {
   int num_plane_inliers = 0;
   int num_constrained_point_inliers = 0;
   int num_constrained_line_inliers = 0;
+  /// Ceres found no usable solution (an evaluation failed at the start point, or the solver
+  /// failed): T_c_w is the last usable pose (the initial one when the first round failed) and
+  /// must not be taken for an optimised one.
+  bool failed = false;
+  /// Point observations left out of a round because the point was behind the camera (or within
+  /// 1 micrometre of its centre) at that round's start pose; they are outliers of that round.
+  int behind_camera = 0;
 };
 
 /// Optimises the pose against points, lines, planes and constrained moving-object features

@@ -10,6 +10,11 @@
 
 namespace mcslam::optim {
 
+/// Depth (m) at or below which a point is behind the camera: its residual cannot be evaluated
+/// (Evaluate returns false, which rejects a trial step but fails a solve at its start point, so
+/// the optimisers leave such observations out) and its chi-square is infinite.
+inline constexpr double kMinPointDepth = 1e-6;
+
 /// What one keypoint says about a world point.
 struct PointMeasurement {
   Eigen::Vector2d uv = Eigen::Vector2d::Zero();

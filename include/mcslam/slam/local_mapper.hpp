@@ -71,6 +71,9 @@ class LocalMapper {
 
   /// Stage times of every processed keyframe (copy; safe from any thread).
   std::vector<StageTimes> keyframe_times() const;
+  /// Bundle adjustments (local and global) whose solver found no usable solution; nothing of
+  /// them was applied. Safe from any thread.
+  int ba_failures() const { return ba_failures_.load(); }
 
  private:
   void run();
@@ -117,6 +120,7 @@ class LocalMapper {
   bool stop_ = false;
   bool busy_ = false;
   std::atomic<bool> abort_ba_{false};
+  std::atomic<int> ba_failures_{0};
   std::thread thread_;
 
   mutable std::mutex times_mutex_;

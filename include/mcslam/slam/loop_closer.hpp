@@ -66,6 +66,9 @@ struct LoopEvent {
   double correction_deg = 0.0;
   double verify_ms = 0.0;
   double correct_ms = 0.0;
+  /// The pose graph had no usable solution: the loop's own keyframes were corrected and fused,
+  /// the rest of the map was left where it was.
+  bool pose_graph_failed = false;
   int fused_points = 0;
 };
 
@@ -78,6 +81,8 @@ struct LoopStatistics {
   std::vector<double> detection_ms;  // per keyframe: database query, grouping, consistency
   int full_ba_runs = 0;
   int full_ba_aborted = 0;
+  int full_ba_failed = 0;     // the solver found no usable solution: nothing was applied
+  int pose_graph_failed = 0;  // loop corrections whose pose graph could not be solved
   std::vector<double> full_ba_ms;
 };
 

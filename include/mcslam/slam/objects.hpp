@@ -114,6 +114,9 @@ class ObjectHandler {
   void remember(const Frame& frame, const SE3& T_c_w);
   /// Tracking was lost: motion history no longer applies.
   void forget();
+  /// The map's world moved (bundle adjustment, a loop or full-BA correction): `W` maps positions
+  /// of the world the past frames were tracked in to the new one; their poses follow.
+  void move_world(const SE3& W);
 
   bool any() const { return !boxes_.empty(); }
   bool point_excluded(std::size_t i) const {

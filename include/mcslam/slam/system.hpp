@@ -5,8 +5,19 @@
 //   for (...) { FrameResult r = system.process(rgb, depth_metres, timestamp); }
 //   system.finish();
 //   Trajectory t = system.trajectory();
+//
+// Threads. process(), finish(), save_session() and readout_report() are called from one thread
+// (the caller's pipeline thread). prepare() may run on any thread alongside process().
+// trajectory(), online_trajectory(), keyframe_trajectory(), mapper_times(), loop_statistics()
+// and solver_statistics() may be called from any thread at any time. The map is read under
+// map().read_lock(). process() copies what it keeps of the images it is given (the detector's
+// thread gets its own copy), so a caller may reuse its buffers as soon as process() returns.
+// The destructor stops the background threads without the final global bundle adjustment:
+// call finish() for it.
 
+#include <atomic>
 #include <memory>
+#include <mutex>
 #include <opencv2/core.hpp>
 #include <optional>
 #include <vector>
@@ -30,6 +41,14 @@ namespace mcslam::slam {
 class FrameBuilder;
 class LocalMapper;
 class LoopCloser;
+
+/// Optimisations whose solver found no usable solution (none of them was applied).
+struct SolverStatistics {
+  int pose_failures = 0;               ///< tracking's pose optimisations (the estimate failed)
+  int bundle_adjustment_failures = 0;  ///< local and final global bundle adjustments
+  int full_ba_failures = 0;            ///< the loop closer's full bundle adjustments
+  int pose_graph_failures = 0;         ///< loop corrections whose pose graph had no solution
+};
 
 struct FrameResult {
   std::uint64_t frame_id = 0;
@@ -137,6 +156,8 @@ class System {
   /// Loops detected, accepted and rejected, and the loop closer's timings (empty without loop
   /// closing).
   LoopStatistics loop_statistics() const;
+  /// Solver failures so far (see SolverStatistics).
+  SolverStatistics solver_statistics() const;
   /// Writes the map as a session file (map/session.hpp); call after finish(). Throws InputError.
   void save_session(const std::string& path) const;
   /// The vocabulary in use (null without one).
@@ -168,7 +189,9 @@ class System {
   std::unique_ptr<DetectionSource> detections_;
   std::unique_ptr<ReadoutEstimator> readout_;  // with camera.readout_auto
   bool wait_for_detections_ = true;
+  mutable std::mutex records_mutex_;  // process() appends; the trajectory readers copy
   std::vector<FrameRecord> records_;
+  std::atomic<int> pose_failures_{0};  // the tracker's count, published after each frame
   std::uint64_t next_frame_id_ = 0;
   /// What is known of the camera's motion around the frame (depth time, rolling shutter) and
   /// where moving objects are expected in it.
@@ -182,6 +205,10 @@ class System {
                        const TrackingOutcome& outcome);
   /// The boxes of the last frame's moving objects (for the next frame's feature budget).
   void remember_moving_regions(const FrameResult& result);
+  void add_record(const FrameRecord& record);
+  std::vector<FrameRecord> records() const;
+  /// Lets the mapper and the loop closer finish their queues and stops their threads.
+  void stop_threads();
   std::vector<FrameMotion::MovingRegion> expected_moving_regions(double timestamp) const;
 
   std::vector<FrameMotion::MovingRegion> moving_regions_;

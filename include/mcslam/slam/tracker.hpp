@@ -1,7 +1,9 @@
 #pragma once
 // Tracking: estimates the pose of each frame against the last frame and the local map, decides
-// keyframes, and relocalises when lost. It reads the map (shared lock) and never writes it:
-// everything the map should learn travels in a KeyFrameRequest to the local mapper.
+// keyframes, and relocalises when lost. It reads the map under one shared lock per frame (so a
+// frame sees one state of the map) and never writes it: everything the map should learn travels
+// in a KeyFrameRequest to the local mapper. What it keeps of earlier frames in world coordinates
+// follows the map when bundle adjustment or a correction moves it (follow_map).
 
 #include <cstdint>
 #include <deque>
@@ -109,6 +111,8 @@ class Tracker {
   std::optional<SE3> predicted_motion(double dt) const;
   /// Angular velocity of the camera (rad/s, camera frame); zero without an estimate.
   Eigen::Vector3d angular_velocity() const;
+  /// Pose optimisations that found no usable solution (each left its frame's estimate failed).
+  int solver_failures() const { return solver_failures_; }
 
  private:
   struct Match {
@@ -174,6 +178,10 @@ class Tracker {
   };
 
   TrackingOutcome initialize(const Frame& frame);
+  /// Re-anchors the tracker's world-frame history (the last frame's pose and feature tracks, the
+  /// object handler's past poses) through the motion of the last frame's reference keyframe
+  /// since that frame was tracked. Call under the map's read lock.
+  void follow_map();
   /// Motion without a box (ObjectHandler::find_movers) after the final estimate; re-optimises
   /// without the movers' features when it finds some. Returns the weighted inlier count.
   int remove_movers(const Frame& frame, Associations& assoc, SE3& T_c_w, int inliers);
@@ -193,7 +201,7 @@ class Tracker {
                           std::vector<Match>& matches);
   int search_local_lines(const Frame& frame, const SE3& T_c_w, std::vector<LineMatch>& matches);
   /// Pose optimisation on every active association; returns the weighted inlier count.
-  int optimize(const Frame& frame, Associations& assoc, SE3& T_c_w) const;
+  int optimize(const Frame& frame, Associations& assoc, SE3& T_c_w);
   /// Inliers as tracking success counts them: points + lines + plane_inlier_weight * planes.
   int weighted_inliers(const Associations& assoc) const;
   void update_local_map(const Associations& assoc, const SE3& T_c_w);
@@ -222,6 +230,7 @@ class Tracker {
   bool localize_ = false;
   std::uint64_t last_keyframe_frame_ = 0;
   std::uint64_t last_relocalisation_frame_ = 0;
+  int solver_failures_ = 0;
   // Local map of the current frame.
   map::KeyFrameId reference_ = map::kNoId;
   LocalMap local_;
