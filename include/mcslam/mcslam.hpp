@@ -137,9 +137,12 @@ class System {
   /// One frame: `rgb` CV_8UC3 (BGR) or CV_8UC1; `depth` CV_32FC1 in metres or CV_16UC1 in the
   /// camera's raw units (divided by camera().depth_factor), 0 = missing; both of the camera's
   /// size. Throws InputError for images of another size or type; never for their content.
+  /// The images are not kept: the caller may reuse its buffers as soon as it returns.
   FrameReport process(const cv::Mat& rgb, const cv::Mat& depth, double timestamp,
                       std::optional<double> depth_timestamp = std::nullopt);
-  /// Lets the mapper finish its queue; call before reading the final trajectory or map.
+  /// Lets the mapper finish its queue, then adjusts the whole map (the final global bundle
+  /// adjustment); call before reading the final trajectory or map. The destructor only stops
+  /// the background threads.
   void finish();
 
   /// Tracked frames at their final (refined) poses.

@@ -4,11 +4,13 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "mcslam/eval/metrics.hpp"
 #include "mcslam/slam/system.hpp"
 #include "mcslam/synth/sequence.hpp"
+#include "pipeline.hpp"
 #include "support/small_room.hpp"
 #include "synthetic_fixture.hpp"
 
@@ -129,6 +131,41 @@ TEST(LoopClosing, RelocalisesThroughTheDatabaseAfterAJumpBackToTheStart) {
               0.05);
   }
   EXPECT_TRUE(relocalised);
+}
+
+// The loop closer on its own (no System): fed each new keyframe of the tracker and the mapper
+// run inline, it finds the revisit, corrects the map through the mapper and leaves the keyframes
+// nearer the truth than the drift they had.
+TEST(LoopCloser, OnItsOwnClosesTheLoopAndPullsTheKeyframesToTheTruth) {
+  const Loop& l = rendered_loop();
+  const SystemOptions o = options(true);
+  ASSERT_FALSE(o.place.vocabulary.empty());
+  auto vocabulary =
+      std::make_shared<const place::Vocabulary>(place::Vocabulary::load(o.place.vocabulary));
+  test::Pipeline p(l, o, vocabulary);
+  for (int i = 0; i < static_cast<int>(l.frames.size()); ++i)
+    ASSERT_EQ(p.track(i).state, TrackingState::kOk) << i;
+  const LoopStatistics stats = p.loops->statistics();
+  int accepted = 0;
+  for (const LoopEvent& e : stats.events) {
+    if (!e.accepted) continue;
+    ++accepted;
+    const SE3 a = truth_at(l.groundtruth, e.timestamp);
+    const SE3 b = truth_at(l.groundtruth, e.matched_timestamp);
+    EXPECT_LT((a.translation() - b.translation()).norm(), 0.5) << e.keyframe << "-" << e.matched;
+    EXPECT_FALSE(e.pose_graph_failed);
+  }
+  EXPECT_GE(accepted, 1);
+  EXPECT_EQ(stats.full_ba_failed, 0);
+  // The keyframes against the truth, aligned as a whole (the map's frame is the first camera's).
+  Trajectory keyframes;
+  for (const auto& [id, kf] : p.map.keyframes()) keyframes.push_back({kf.timestamp, kf.T_w_c()});
+  std::sort(keyframes.begin(), keyframes.end(),
+            [](const StampedPose& a, const StampedPose& b) { return a.timestamp < b.timestamp; });
+  const double ate = eval::evaluate(l.groundtruth, keyframes).ate.translation.rmse;
+  std::printf("loop closer on its own: %d loop(s), keyframe ATE %.4f m\n", accepted, ate);
+  // System runs measure 0.011 m on every frame with loop closing and 0.054 m without.
+  EXPECT_LT(ate, 0.02);
 }
 
 // The default mode: the mapper, the loop closer and its full bundle adjustment on their threads

@@ -3,54 +3,14 @@
 #include <gtest/gtest.h>
 
 #include <numbers>
-#include <opencv2/imgproc.hpp>
 
 #include "mcslam/map/correction.hpp"
-#include "mcslam/slam/frame.hpp"
-#include "mcslam/slam/local_mapper.hpp"
-#include "mcslam/slam/tracker.hpp"
-#include "synthetic_fixture.hpp"
+#include "pipeline.hpp"
 
 namespace mcslam::slam {
 namespace {
 
-/// A tracker and a mapper on one map, run inline (the mapper processes each keyframe request at
-/// once), with empty detections on every frame so that the search for movers without a box
-/// (dynamics.find_movers) runs.
-struct Pipeline {
-  explicit Pipeline(const test::RenderedSequence& seq, const SystemOptions& o = SystemOptions{})
-      : seq(seq),
-        options(o),
-        builder(seq.camera, options),
-        tracker(seq.camera, options.tracker, map),
-        mapper(seq.camera, options.mapper, options.tracker,
-               options.tracker.close_depth_factor * seq.camera.bf / seq.camera.fx, map) {}
-
-  Frame frame(int i) const {
-    const auto& f = seq.frames[static_cast<std::size_t>(i)];
-    cv::Mat gray;
-    cv::cvtColor(f.rgb, gray, cv::COLOR_BGR2GRAY);
-    Frame frame =
-        builder.build(static_cast<std::uint64_t>(i),
-                      seq.groundtruth[static_cast<std::size_t>(i)].timestamp, gray, f.depth);
-    frame.objects = std::make_shared<const FrameObjects>();
-    return frame;
-  }
-
-  /// Tracks frame i; a keyframe request goes to the mapper unless `hold` keeps it back.
-  TrackingOutcome track(int i, bool hold = false) {
-    TrackingOutcome out = tracker.track(frame(i), true, 0);
-    if (out.keyframe && !hold) mapper.process(std::move(*out.keyframe));
-    return out;
-  }
-
-  const test::RenderedSequence& seq;
-  SystemOptions options;
-  map::Map map;
-  FrameBuilder builder;
-  Tracker tracker;
-  LocalMapper mapper;
-};
+using test::Pipeline;
 
 /// The camera centre's error of a pose against the ground truth of frame i, after mapping the
 /// estimate's world to the truth's by `W_truth_est`.
