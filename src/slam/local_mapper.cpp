@@ -39,6 +39,13 @@ void LocalMapper::process(KeyFrameRequest request, StageTimes* times) {
   fuse_neighbours(id);
   local.add("map_fuse", watch.elapsed_ms());
   watch.restart();
+  {
+    // A keyframe that arrives from now on stops this BA (enqueue sets the flag), one queued
+    // before does not; a task (a loop correction, a full-BA merge) never waits for it. Set under
+    // the queue's mutex, so that it cannot wipe the abort of a task queued meanwhile.
+    std::lock_guard<std::mutex> guard(queue_mutex_);
+    abort_ba_ = !tasks_.empty();
+  }
   local_bundle_adjustment(id);
   merge_planes();
   local.add("local_ba", watch.elapsed_ms());
@@ -172,10 +179,6 @@ void LocalMapper::run() {
       request = std::move(queue_.front());
       queue_.pop_front();
       busy_ = true;
-      // Cleared here, under the queue's mutex, where the request is taken: a keyframe or task
-      // that arrives from now on aborts this keyframe's BA (enqueue and run_task set the flag
-      // after queueing). Cleared later, it could wipe an abort set in between.
-      abort_ba_ = false;
     }
     process(std::move(request));
     std::lock_guard<std::mutex> lock(queue_mutex_);
