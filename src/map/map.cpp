@@ -235,25 +235,30 @@ void Map::set_point_color(PointId id, const std::array<std::uint8_t, 3>& rgb) {
   if (auto it = points_.find(id); it != points_.end()) it->second.color = rgb;
 }
 
-PointId Map::resolve_point(PointId id) const {
-  // Chains are short (a point is fused a few times at most); the bound guards against a cycle.
-  for (std::size_t step = 0; step <= replaced_points_.size() && id != kNoId; ++step) {
-    if (points_.count(id) != 0) return id;
-    const auto it = replaced_points_.find(id);
-    if (it == replaced_points_.end()) return kNoId;
+namespace {
+
+/// Follows the forward links of fused landmarks from `id` to one that exists (see
+/// Map::resolve_point). Chains are short (a landmark is fused a few times at most); the bound
+/// guards against a cycle.
+template <typename Id, typename Landmarks>
+Id follow_replacements(Id id, const Landmarks& landmarks, const std::unordered_map<Id, Id>& links) {
+  for (std::size_t step = 0; step <= links.size() && id != kNoId; ++step) {
+    if (landmarks.count(id) != 0) return id;
+    const auto it = links.find(id);
+    if (it == links.end()) return kNoId;
     id = it->second;
   }
   return kNoId;
 }
 
+}  // namespace
+
+PointId Map::resolve_point(PointId id) const {
+  return follow_replacements(id, points_, replaced_points_);
+}
+
 LineId Map::resolve_line(LineId id) const {
-  for (std::size_t step = 0; step <= replaced_lines_.size() && id != kNoId; ++step) {
-    if (lines_.count(id) != 0) return id;
-    const auto it = replaced_lines_.find(id);
-    if (it == replaced_lines_.end()) return kNoId;
-    id = it->second;
-  }
-  return kNoId;
+  return follow_replacements(id, lines_, replaced_lines_);
 }
 
 void Map::update_point_appearance(PointId id) {
