@@ -408,7 +408,7 @@ nlohmann::json run_frames(const RunRequest& request, const std::string& source_p
                           std::unique_ptr<map::Map> initial_map,
                           const std::optional<Trajectory>& groundtruth,
                           const std::optional<slam::ReadoutCalibration>& calibration,
-                          RunStatus& status) {
+                          RunStatus& status, Viewer* viewer, RunControl* control) {
   namespace fs = std::filesystem;
   const fs::path out(request.output_dir);
   slam::System system(config.camera, config.options, std::move(initial_map));
@@ -438,6 +438,7 @@ nlohmann::json run_frames(const RunRequest& request, const std::string& source_p
   if (passes) observers.push_back(&*passes);
   observers.push_back(&checkpoints);
   if (progress) observers.push_back(&*progress);
+  if (viewer) observers.push_back(viewer);
 
   Stopwatch wall;
   FrameInput input(request, source, plan, total, system, config.camera);
@@ -448,6 +449,13 @@ nlohmann::json run_frames(const RunRequest& request, const std::string& source_p
     if (request.stop_requested && request.stop_requested()) {
       interrupted = true;
       break;
+    }
+    if (control) {
+      // Between two frames: wait while paused, switch localisation only on or off.
+      control->wait_while_paused(request.stop_requested);
+      if (request.stop_requested && request.stop_requested()) continue;
+      if (const std::optional<bool> localize = control->take_localize_change(done))
+        system.set_localize(*localize);
     }
     std::optional<InputFrame> in = input.next(done);
     if (!in) break;
@@ -589,7 +597,11 @@ nlohmann::json run_frames(const RunRequest& request, const std::string& source_p
         {"latency_max_ms", latency.max}};
   }
   summary["wall_time_s"] = wall_s;
-  summary["frames_per_second"] = wall_s > 0 ? processed / wall_s : 0.0;
+  // Time spent paused from the viewer does not count against the frame rate.
+  const double running_s = wall_s - (control ? control->paused_ms() / 1000.0 : 0.0);
+  summary["frames_per_second"] = running_s > 0 ? processed / running_s : 0.0;
+  if (control) summary["controls"] = control->summary();
+  if (viewer) summary["viewer"] = viewer->summary();
   summary["peak_rss_mib"] = peak_rss_mib();
   nlohmann::json stages = nlohmann::json::object();
   for (const auto& name : recorder.stage_table.names) {
@@ -773,9 +785,22 @@ nlohmann::json run_sequence(const RunRequest& request) {
                   << " over the first " << calibration->frames << " frames in "
                   << std::setprecision(1) << calibration->wall_ms / 1e3 << " s)\n";
     }
+    // The viewer listens before the run starts, so that a port in use is reported at once.
+    std::optional<RunControl> control;
+    std::unique_ptr<Viewer> viewer;
+    if (request.viewer) {
+      control.emplace(config.options.localize);
+      viewer = std::make_unique<Viewer>(*request.viewer, *control, source_path, total, groundtruth);
+      const std::string& bind = request.viewer->server.bind;
+      if (bind != "127.0.0.1" && bind != "::1")
+        std::cerr << "mcslam: warning: the viewer listens on " << bind
+                  << ", not only on this machine: anyone who can reach it can watch and pause "
+                     "the run (see docs/viewer.md for an SSH tunnel instead)\n";
+      std::cerr << "mcslam: viewer at " << viewer->url() << "\n";
+    }
     return run_frames(request, source_path, source.get(), warnings, plan, total, config,
                       std::move(detection_source), std::move(initial_map), groundtruth, calibration,
-                      status);
+                      status, viewer.get(), control ? &*control : nullptr);
   } catch (const InputError& e) {
     status.failed(e.what());
     throw;
