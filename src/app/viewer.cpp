@@ -99,21 +99,9 @@ Viewer::Viewer(const ViewerOptions& options, RunControl& control, std::string se
   files["/viewer.js"] = {"text/javascript; charset=utf-8", read_page_script()};
   server_ = std::make_unique<ViewerServer>(options.server, std::move(files),
                                            [this](const std::string& text) { on_message(text); });
-  // What a client needs once: the run and the ground truth (thinned).
-  nlohmann::json hello = {{"type", "hello"},
-                          {"sequence", sequence},
-                          {"total", total},
-                          {"frame_hz", options.frame_hz},
-                          {"map_hz", options.map_hz}};
-  std::vector<float> gt;
-  if (groundtruth)
-    for (const StampedPose& p : *groundtruth) {
-      const Eigen::Vector3d t = p.T_w_c.translation();
-      gt.insert(gt.end(),
-                {static_cast<float>(t.x()), static_cast<float>(t.y()), static_cast<float>(t.z())});
-    }
-  hello["groundtruth"] = thin(gt, 3, options.max_trajectory_points);
-  server_->publish(ViewerChannel::kHello, hello.dump(), false);
+  sequence_ = std::move(sequence);
+  if (groundtruth) groundtruth_ = *groundtruth;
+  server_->publish(ViewerChannel::kHello, hello_json(), false);
   thread_ = std::thread([this] { loop(); });
 }
 
@@ -125,6 +113,38 @@ Viewer::~Viewer() {
   wake_.notify_all();
   if (thread_.joinable()) thread_.join();
   server_.reset();
+}
+
+std::string Viewer::hello_json() const {
+  // What a client needs once: the run and the ground truth (thinned).
+  nlohmann::json hello = {{"type", "hello"},
+                          {"sequence", sequence_},
+                          {"total", total_},
+                          {"frame_hz", options_.frame_hz},
+                          {"map_hz", options_.map_hz}};
+  SE3 T_map_gt;  // identity until the first tracked pose
+  bool aligned = false;
+  if (anchor_ && !groundtruth_.empty()) {
+    const auto nearest = std::min_element(groundtruth_.begin(), groundtruth_.end(),
+                                          [&](const StampedPose& a, const StampedPose& b) {
+                                            return std::abs(a.timestamp - anchor_->timestamp) <
+                                                   std::abs(b.timestamp - anchor_->timestamp);
+                                          });
+    if (std::abs(nearest->timestamp - anchor_->timestamp) < 0.1) {
+      T_map_gt = anchor_->T_w_c * nearest->T_w_c.inverse();
+      aligned = true;
+    }
+  }
+  std::vector<float> gt;
+  gt.reserve(3 * groundtruth_.size());
+  for (const StampedPose& p : groundtruth_) {
+    const Eigen::Vector3d t = T_map_gt * p.T_w_c.translation();
+    gt.insert(gt.end(),
+              {static_cast<float>(t.x()), static_cast<float>(t.y()), static_cast<float>(t.z())});
+  }
+  hello["groundtruth"] = thin(gt, 3, options_.max_trajectory_points);
+  hello["groundtruth_aligned"] = aligned;
+  return hello.dump();
 }
 
 std::string Viewer::url() const {
@@ -158,6 +178,7 @@ void Viewer::on_frame(const FrameEvent& e) {
   }
   keyframes_ += r.keyframe ? 1 : 0;
   pose_ = r.T_w_c;
+  if (r.T_w_c && !anchor_) anchor_ = StampedPose{r.timestamp, *r.T_w_c};
   if (r.T_w_c) {
     const Eigen::Vector3d t = r.T_w_c->translation();
     trajectory_.insert(trajectory_.end(), {static_cast<float>(t.x()), static_cast<float>(t.y()),
@@ -358,7 +379,13 @@ void Viewer::loop() {
       urgent_stats_ = false;
     }
     const bool map_due = last_map < 0.0 || now - last_map >= 1.0 / options_.map_hz;
+    std::string hello;
+    if (!hello_aligned_ && anchor_) {
+      hello = groundtruth_.empty() ? std::string() : hello_json();
+      hello_aligned_ = true;
+    }
     lock.unlock();
+    if (!hello.empty()) server_->publish(ViewerChannel::kHello, std::move(hello), false);
     if (!stats.empty()) server_->publish(ViewerChannel::kStats, std::move(stats), false);
     {
       std::lock_guard<std::mutex> system_lock(system_mutex_);

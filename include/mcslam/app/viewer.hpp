@@ -64,6 +64,9 @@ class Viewer : public FrameObserver {
   std::string stats_json();                       // under mutex_
   std::string map_message(slam::System& system);  // under system_mutex_
   void send_frame(const PendingFrame& frame, const slam::System& system);
+  /// The hello message; the ground truth placed in the map's frame by the first tracked pose
+  /// (the pose of the ground truth nearest in time mapped onto it), raw until then.
+  std::string hello_json() const;
 
   ViewerOptions options_;
   RunControl& control_;
@@ -85,6 +88,10 @@ class Viewer : public FrameObserver {
   std::size_t keyframes_ = 0;
   std::vector<float> trajectory_;  // x, y, z of each tracked frame
   std::optional<SE3> pose_;
+  std::string sequence_;
+  Trajectory groundtruth_;
+  std::optional<StampedPose> anchor_;  // the first tracked pose (for the ground truth)
+  bool hello_aligned_ = false;         // the viewer's thread only
   Stopwatch wall_;
   double last_handoff_s_ = -1.0;
   std::size_t map_points_ = 0;
