@@ -28,9 +28,20 @@ if mode == "stall":
     s.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
     while True:
         time.sleep(1)
-total = 0
+# Reads everything; says something every 5 s, as a browser answers pings (the server closes a
+# connection it hears nothing from for 30 s).
+s.settimeout(1.0)
+total, last = 0, time.time()
 while True:
-    data = s.recv(1 << 16)
+    if time.time() - last > 5:
+        s.sendall(bytes([0x81, 0x80 | 2, 0, 0, 0, 0]) + b"{}")  # a masked text frame: {}
+        last = time.time()
+    try:
+        data = s.recv(1 << 16)
+    except socket.timeout:
+        continue
+    except OSError:
+        break
     if not data: break
     total += len(data)
 print(f"client read {total / 1e6:.1f} MB", file=sys.stderr)

@@ -418,6 +418,15 @@ nlohmann::json run_frames(const RunRequest& request, const std::string& source_p
     system.set_detection_source(std::move(detection_source), request.wait_for_detections);
   }
 
+  // The viewer reads the System from its own thread: it lets go before the System goes, also
+  // when the run ends with an error.
+  struct DetachViewer {
+    Viewer* viewer;
+    ~DetachViewer() {
+      if (viewer) viewer->detach();
+    }
+  } detach_viewer{viewer};
+
   // The observers of each frame's result, in the order they see it.
   FrameRecorder recorder;
   ObjectsRecorder objects(system.detection_source()

@@ -165,6 +165,8 @@ void Viewer::on_frame(const FrameEvent& e) {
   timestamp_ = r.timestamp;
   state_ = slam::to_string(r.state);
   tracking_ms_.push_back(r.times.total_ms());
+  frame_s_.push_back(now);
+  if (frame_s_.size() > 30) frame_s_.erase(frame_s_.begin());
   if (tracking_ms_.size() > kRecent) tracking_ms_.erase(tracking_ms_.begin());
   if (r.detections_fresh) fresh_detection_s_.push_back(now);
   while (!fresh_detection_s_.empty() && fresh_detection_s_.front() < now - 3.0)
@@ -198,8 +200,8 @@ void Viewer::on_stream_end(slam::System& system) {
   {
     std::lock_guard<std::mutex> lock(system_mutex_);
     map = map_message(system);
-    system_ = nullptr;
   }
+  detach();
   server_->publish(ViewerChannel::kMap, std::move(map), true);
   {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -207,6 +209,11 @@ void Viewer::on_stream_end(slam::System& system) {
     urgent_stats_ = true;
   }
   wake_.notify_all();
+}
+
+void Viewer::detach() {
+  std::lock_guard<std::mutex> lock(system_mutex_);
+  system_ = nullptr;
 }
 
 void Viewer::on_message(const std::string& text) {
@@ -239,7 +246,9 @@ std::string Viewer::stats_json() {
                       {"done", done_},
                       {"total", total_},
                       {"state", state_},
-                      {"fps", now > 0.0 ? static_cast<double>(done_) / now : 0.0},
+                      {"fps", frame_s_.size() > 1 && frame_s_.back() > frame_s_.front()
+                                  ? (frame_s_.size() - 1) / (frame_s_.back() - frame_s_.front())
+                                  : 0.0},
                       {"tracking_ms", tracking_ms_.empty() ? 0.0 : tracking_ms_.back()},
                       {"tracking_recent", tracking_ms_},
                       {"detector_hz", static_cast<double>(fresh_detection_s_.size()) /

@@ -80,6 +80,7 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
       : ws_(std::move(stream)), server_(server) {}
 
   void accept(http::request<http::string_body> request) {
+    request_ = std::move(request);  // kept for as long as the handshake may read it
     beast::get_lowest_layer(ws_).expires_never();
     websocket::stream_base::timeout timeout{};
     timeout.handshake_timeout = to_ms(server_.options.handshake_timeout_s);
@@ -89,7 +90,7 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
     ws_.read_message_max(server_.options.max_message_bytes);
     ws_.set_option(websocket::stream_base::decorator(
         [](websocket::response_type& response) { response.set(http::field::server, "mcslam"); }));
-    ws_.async_accept(request, [self = shared_from_this()](beast::error_code ec) {
+    ws_.async_accept(request_, [self = shared_from_this()](beast::error_code ec) {
       if (ec) return;  // a failed handshake: the connection goes
       self->server_.add(self);
       self->read();
@@ -156,6 +157,7 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
 
   websocket::stream<beast::tcp_stream> ws_;
   ViewerServer::Impl& server_;
+  http::request<http::string_body> request_;
   beast::flat_buffer buffer_;
   std::array<MessagePtr, kViewerChannels> pending_;
   MessagePtr in_flight_;

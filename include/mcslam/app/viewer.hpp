@@ -51,6 +51,8 @@ class Viewer : public FrameObserver {
   void on_frame(const FrameEvent& event) override;
   /// Sends the last figures and map; the viewer no longer reads the System afterwards.
   void on_stream_end(slam::System& system) override;
+  /// The viewer no longer reads the System (call before the System goes, also on an error).
+  void detach();
   /// summary.json "viewer".
   nlohmann::json summary() const;
 
@@ -83,6 +85,7 @@ class Viewer : public FrameObserver {
   double timestamp_ = 0.0;
   std::string state_ = "waiting";
   std::vector<double> tracking_ms_;        // newest last, at most kRecent
+  std::vector<double> frame_s_;            // wall times of the last frames (the live rate)
   std::vector<double> fresh_detection_s_;  // wall times of fresh detections (last few s)
   int box_age_ = -1, objects_ = 0, dynamic_objects_ = 0, constrained_objects_ = 0;
   std::size_t keyframes_ = 0;
