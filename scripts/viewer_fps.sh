@@ -12,7 +12,7 @@ exe="$(cd "$(dirname "$0")/.." && pwd)/build/mcslam"
 port=18765
 mkdir -p "$out"
 client() {  # client PORT read|stall: connects when the server is up, until it closes
-  python3 - "$@" << 'PY'
+  exec python3 - "$@" << 'PY'
 import socket, sys, time
 port, mode = int(sys.argv[1]), sys.argv[2]
 for _ in range(600):
@@ -59,10 +59,16 @@ run() {  # run NAME MODE K
   python3 -c "import json,sys; s=json.load(open('$dir/summary.json')); print('$name', $k, round(s['frames_per_second'], 2), s.get('viewer', {}).get('clients_dropped', '-'))"
 }
 EXTRA=("$@")
+# ORDER: the order of the three runs within a round (to check for position effects).
+order="${ORDER:-none viewer stalled}"
 for k in $(seq 1 "$n"); do
-  run none none "$k"
-  run viewer read "$k"
-  run stalled stall "$k"
+  for m in $order; do
+    case "$m" in
+      none) run none none "$k" ;;
+      viewer) run viewer read "$k" ;;
+      stalled) run stalled stall "$k" ;;
+    esac
+  done
 done | tee "$out/fps.txt"
 python3 - "$out/fps.txt" << 'PY'
 import statistics, sys
