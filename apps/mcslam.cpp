@@ -126,7 +126,7 @@ void apply_viewer_args(const ViewerArgs& v, mcslam::app::RunRequest& request) {
   }
   mcslam::app::ViewerOptions options;
   options.server.bind = v.bind;
-  if (!v.port.empty()) {
+  if (!v.port.empty() && !v.port.front().empty()) {  // `--viewer` alone: the default port
     const std::string& text = v.port.front();
     std::size_t used = 0;
     int port = -1;
