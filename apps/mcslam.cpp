@@ -99,6 +99,50 @@ void install_stop_handler() {
   sigaction(SIGTERM, &action, nullptr);
 }
 
+/// --viewer [PORT] and --viewer-bind ADDR, as typed.
+struct ViewerArgs {
+  CLI::Option* option = nullptr;
+  std::vector<std::string> port;  // empty: the default port
+  std::string bind = "127.0.0.1";
+};
+
+void add_viewer_options(CLI::App* cmd, ViewerArgs& v) {
+  v.option = cmd->add_option("--viewer", v.port,
+                             "Serve the live viewer at http://127.0.0.1:PORT/ (default port " +
+                                 std::to_string(mcslam::app::ViewerServerOptions{}.port) +
+                                 "; 0: any free port): frame, map, figures, pause, "
+                                 "localisation only (docs/viewer.md)")
+                 ->expected(0, 1);
+  cmd->add_option("--viewer-bind", v.bind,
+                  "Address the viewer listens on (default 127.0.0.1, this machine only; another "
+                  "exposes the run, with a warning)");
+}
+
+/// The viewer's options when --viewer was given; InputError for a bad port.
+void apply_viewer_args(const ViewerArgs& v, mcslam::app::RunRequest& request) {
+  if (v.option->count() == 0) {
+    if (v.bind != "127.0.0.1") throw mcslam::InputError("--viewer-bind: only with --viewer");
+    return;
+  }
+  mcslam::app::ViewerOptions options;
+  options.server.bind = v.bind;
+  if (!v.port.empty() && !v.port.front().empty()) {  // `--viewer` alone: the default port
+    const std::string& text = v.port.front();
+    std::size_t used = 0;
+    int port = -1;
+    try {
+      port = std::stoi(text, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (used != text.size() || port < 0 || port > 65535)
+      throw mcslam::InputError("--viewer: the port must be a number from 0 to 65535, got '" + text +
+                               "'");
+    options.server.port = port;
+  }
+  request.viewer = options;
+}
+
 int run_command(mcslam::app::RunRequest request, bool quiet) {
   install_stop_handler();
   request.stop_requested = [] { return g_stop_requested != 0; };
@@ -274,6 +318,8 @@ int main(int argc, char** argv) {
   run_cmd->add_flag("--realtime", run.realtime,
                     "Deliver frames at their timestamps as a live camera does, dropping those the "
                     "pipeline cannot take in time (dropped frames and latency in the summary)");
+  ViewerArgs run_viewer;
+  add_viewer_options(run_cmd, run_viewer);
   run_cmd->add_flag("--quiet,-q", quiet, "No progress bar and no summary");
 
   // export-bag: a TUM-layout folder as a ROS 1 bag.
@@ -332,6 +378,8 @@ int main(int argc, char** argv) {
   ros_cmd->add_flag("--no-loop-closing", node_run.no_loop_closing, "Do not close loops");
   ros_cmd->add_flag("--save-map", node_run.save_map, "With --output: also map.ply and map.json");
   ros_cmd->add_flag("--save-overlays", node_run.save_overlays, "With --output: also overlays/");
+  ViewerArgs node_viewer;
+  add_viewer_options(ros_cmd, node_viewer);
   ros_cmd->add_flag("--quiet,-q", quiet, "No summary at the end");
 
   mcslam::app::BenchRequest bench;
@@ -493,6 +541,7 @@ int main(int argc, char** argv) {
       if (sequential) run.sequential = true;
       if (threaded) run.sequential = false;
       run.progress = !quiet && isatty(fileno(stderr));
+      apply_viewer_args(run_viewer, run);
       if (is_bag_path(run.sequence_dir)) {
 #ifdef MCSLAM_HAVE_ROS
         if (run.associations_path)
@@ -537,6 +586,7 @@ int main(int argc, char** argv) {
       options.keep_all = node_keep_all;
       options.cloud_period_s = node_cloud_period;
       if (node_sequential) node_run.sequential = true;
+      apply_viewer_args(node_viewer, node_run);
       install_stop_handler();
       const nlohmann::json summary =
           mcslam::ros::run_node(node_run, options, [] { return g_stop_requested != 0; });

@@ -30,6 +30,10 @@ install(FILES ${PROJECT_SOURCE_DIR}/LICENSE ${PROJECT_SOURCE_DIR}/docs/licenses.
 if(TARGET mcslam_report)
   install(FILES ${PROJECT_BINARY_DIR}/report/report.js DESTINATION ${MCSLAM_INSTALL_DATADIR}/report)
 endif()
+# The live viewer's page (`mcslam run --viewer`), found as a data file.
+if(TARGET mcslam_viewer_page)
+  install(FILES ${PROJECT_BINARY_DIR}/${MCSLAM_INSTALL_DATADIR}/viewer/viewer.js DESTINATION ${MCSLAM_INSTALL_DATADIR}/viewer)
+endif()
 
 install(EXPORT mcslamTargets NAMESPACE mcslam:: DESTINATION ${MCSLAM_INSTALL_CMAKEDIR}
         FILE mcslamTargets.cmake)

@@ -13,6 +13,7 @@ PACKAGES=(
   libcli11-dev
   libspdlog-dev libfmt-dev
   nlohmann-json3-dev
+  libboost-dev  # Boost.Beast (header-only): the live viewer's HTTP and WebSocket server
   libgtest-dev libgmock-dev
   libbenchmark-dev
   clang-format

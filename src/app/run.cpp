@@ -31,6 +31,7 @@
 #include "mcslam/slam/config.hpp"
 #include "mcslam/slam/readout_calibration.hpp"
 #include "mcslam/slam/system.hpp"
+#include "run_observers.hpp"
 
 namespace mcslam::app {
 namespace {
@@ -49,24 +50,6 @@ bool is_bonn(const std::string& directory) {
   std::transform(name.begin(), name.end(), name.begin(), ::tolower);
   return name.find("bonn") != std::string::npos;
 }
-
-class ProgressBar {
- public:
-  ProgressBar(bool enabled, std::size_t total) : enabled_(enabled), total_(total) {}
-  void update(std::size_t done, double fps, int lost) {
-    if (!enabled_ || (done % 5 != 0 && done != total_)) return;
-    const int width = 30;
-    const int filled = total_ == 0 ? width : static_cast<int>(width * done / total_);
-    std::fprintf(stderr, "\r[%s%s] %zu/%zu  %.1f fps  lost %d ", std::string(filled, '#').c_str(),
-                 std::string(width - filled, '.').c_str(), done, total_, fps, lost);
-    if (done == total_) std::fputc('\n', stderr);
-    std::fflush(stderr);
-  }
-
- private:
-  bool enabled_;
-  std::size_t total_;
-};
 
 std::string format_tum_keyframes(const Trajectory& keyframes) {
   std::ostringstream s;
@@ -109,44 +92,6 @@ std::unique_ptr<slam::DetectionSource> make_detection_source(const RunRequest& r
         waits ? 0 : system.detector_niceness);
   }
   return nullptr;
-}
-
-nlohmann::json objects_json(const slam::FrameResult& r) {
-  nlohmann::json objects = nlohmann::json::array();
-  for (const slam::ObjectReport& o : r.objects) {
-    const auto& b = o.detection.box;
-    nlohmann::json j = {{"track", o.track_id},
-                        {"class", o.detection.class_name},
-                        {"class_id", o.detection.class_id},
-                        {"score", o.detection.score},
-                        {"box", {b.x, b.y, b.width, b.height}},
-                        {"state", slam::to_string(o.state)},
-                        {"matches", o.decision.matches},
-                        {"own_f", o.decision.own_f},
-                        {"ransac_inliers", o.decision.ransac_inliers},
-                        {"counted", o.decision.counted},
-                        {"outliers", o.decision.outliers},
-                        {"outlier_ratio", o.decision.outlier_ratio},
-                        {"median_distance_px", o.decision.median_distance},
-                        {"decided", o.decision.decided},
-                        {"source", slam::to_string(o.source)},
-                        {"propagated_matches", o.propagated_matches},
-                        {"background_points", o.background_points}};
-    if (o.depth_far > 0.0f) j["depth_band_m"] = {o.depth_near, o.depth_far};
-    if (o.constraint.plane >= 0 || o.constraint.points > 0)
-      j["constraint"] = {{"constrained", o.constraint.constrained},
-                         {"plane", o.constraint.plane},
-                         {"distance_change_m", o.constraint.distance_change},
-                         {"angle_change_deg", o.constraint.angle_change_deg},
-                         {"points", o.constraint.points},
-                         {"lines", o.constraint.lines}};
-    objects.push_back(j);
-  }
-  return objects;
-}
-
-int count_labels(const std::vector<slam::FeatureLabel>& labels, slam::FeatureLabel label) {
-  return static_cast<int>(std::count(labels.begin(), labels.end(), label));
 }
 
 }  // namespace
@@ -316,15 +261,6 @@ nlohmann::json loops_json(const slam::LoopStatistics& stats, const slam::PlaceOp
           {"events", events}};
 }
 
-/// Resident memory of this process now, in MiB (Linux), 0 when unknown.
-double current_rss_mib() {
-  std::ifstream statm("/proc/self/statm");
-  long long pages = 0, resident = 0;
-  if (!(statm >> pages >> resident)) return 0.0;
-  return static_cast<double>(resident) * static_cast<double>(::sysconf(_SC_PAGESIZE)) /
-         (1024.0 * 1024.0);
-}
-
 /// The frames a run plays: the sequence `passes` times in a row, pass k shifted by k * period.
 struct StreamPlan {
   std::vector<io::FrameEntry> frames;
@@ -388,73 +324,81 @@ Trajectory repeat_groundtruth(const Trajectory& groundtruth, const StreamPlan& p
   return out;
 }
 
-/// status.json: how far a run got, rewritten atomically at each change of state and at
-/// checkpoints, so that a killed run is recognisable as partial.
-class RunStatus {
+/// The frames of a run, one at a time: from the feed (a recorded sequence, read ahead on the
+/// feed's thread) or from a live stream (prepared on the loop's thread as they arrive).
+struct InputFrame {
+  slam::PreparedImages images;
+  double rgb_timestamp = 0.0, depth_timestamp = 0.0;
+  std::size_t index = 0;  // frames taken or dropped before this one
+  double wait_ms = 0.0;
+  std::size_t dropped_before = 0;
+  double due_s = 0.0;  // real time: when the frame was due on the feed's clock
+};
+
+class FrameInput {
  public:
-  RunStatus(std::string path, std::size_t frames_total)
-      : path_(std::move(path)), frames_total_(frames_total) {
-    write("running", 0, {});
+  FrameInput(const RunRequest& request, const io::FrameSource* source, const StreamPlan& plan,
+             std::size_t total, const slam::System& system, const PinholeCamera& camera)
+      : live_(request.live.get()), plan_(plan), system_(system), camera_(camera) {
+    if (live_) return;
+    // Frames are read, decoded and undistorted on the feed's thread, off the frame loop.
+    auto load = [&plan, &system, source, &camera](std::size_t k) {
+      const io::RgbdImages raw = load_checked(*source, plan, k, camera);
+      return system.prepare(raw.rgb, raw.depth);
+    };
+    std::vector<double> stamps;
+    stamps.reserve(total);
+    for (std::size_t k = 0; k < total; ++k) stamps.push_back(plan.frames[k].rgb_timestamp);
+    feed_.emplace(load, std::move(stamps), FeedOptions{request.realtime, 2});
   }
-  void running(std::size_t frames_done) { write("running", frames_done, {}); }
-  void finished(bool interrupted, std::size_t frames_done) {
-    write(interrupted ? "interrupted" : "complete", frames_done, {});
-  }
-  /// Best effort: the error is reported to the caller anyway.
-  void failed(const std::string& error) {
-    try {
-      write("failed", frames_done_, error);
-    } catch (const InputError&) {
+
+  /// The next frame, nullopt at the end of the stream. image_load (wait_ms) is the time the
+  /// loop waited for the feed (in real time: for the camera).
+  std::optional<InputFrame> next(std::size_t done) {
+    InputFrame in;
+    if (live_) {
+      Stopwatch wait;
+      std::optional<LiveFrame> frame = live_->next();
+      if (!frame) return std::nullopt;
+      if (frame->rgb.cols != camera_.width || frame->rgb.rows != camera_.height ||
+          frame->depth.size() != frame->rgb.size())
+        throw InputError(live_->describe() + ": frame at " + std::to_string(frame->rgb_timestamp) +
+                         " s is " + std::to_string(frame->rgb.cols) + "x" +
+                         std::to_string(frame->rgb.rows) + " (depth " +
+                         std::to_string(frame->depth.cols) + "x" +
+                         std::to_string(frame->depth.rows) + ") but the camera is " +
+                         std::to_string(camera_.width) + "x" + std::to_string(camera_.height));
+      in.index = done;
+      in.wait_ms = wait.elapsed_ms();
+      in.dropped_before = frame->dropped_before;
+      in.images = system_.prepare(frame->rgb, frame->depth);
+      in.rgb_timestamp = frame->rgb_timestamp;
+      in.depth_timestamp = frame->depth_timestamp;
+      return in;
     }
+    std::optional<FedFrame> fed = feed_->next();
+    if (!fed) return std::nullopt;
+    in.index = fed->index;
+    in.wait_ms = fed->wait_ms;
+    in.dropped_before = fed->dropped_before;
+    in.due_s = fed->due_s;
+    in.images = std::move(fed->images);
+    in.rgb_timestamp = plan_.frames[fed->index].rgb_timestamp;
+    in.depth_timestamp = plan_.frames[fed->index].depth_timestamp;
+    return in;
+  }
+  /// Seconds on the feed's clock (real time).
+  double now_s() const { return feed_ ? feed_->now_s() : 0.0; }
+  std::vector<std::size_t> dropped() const {
+    return feed_ ? feed_->dropped() : std::vector<std::size_t>{};
   }
 
  private:
-  void write(const std::string& state, std::size_t frames_done, const std::string& error) {
-    frames_done_ = frames_done;
-    nlohmann::json j = {{"state", state},
-                        {"frames_done", frames_done},
-                        {"frames_total", frames_total_},
-                        {"pid", static_cast<long long>(::getpid())}};
-    if (!error.empty()) j["error"] = error;
-    io::write_file_atomic(path_, j.dump(2) + "\n");
-  }
-
-  std::string path_;
-  std::size_t frames_total_;
-  std::size_t frames_done_ = 0;
-};
-
-/// Figures of one pass of a repeated run, taken as its last frame is done.
-struct PassFigures {
-  int frames = 0, tracked = 0, lost = 0, relocalised = 0, keyframes_inserted = 0;
-  std::vector<double> tracking_ms;
-  double wall_s = 0.0;
-  double rss_end_mib = 0.0;
-  std::size_t keyframes_in_map = 0, points_in_map = 0, lines_in_map = 0;
-};
-
-/// Per-frame stage times, compactly: the value of stage k (in first-seen order) or 0.
-struct StageTable {
-  std::vector<std::string> names;
-  std::map<std::string, std::size_t> index;
-  std::vector<std::vector<float>> rows;
-
-  void add_frame(const StageTimes& times) {
-    std::vector<float> row(names.size(), 0.0f);
-    for (const auto& [name, ms] : times.stages) {
-      auto it = index.find(name);
-      if (it == index.end()) {
-        it = index.emplace(name, names.size()).first;
-        names.push_back(name);
-        row.push_back(0.0f);
-      }
-      row[it->second] += static_cast<float>(ms);  // a stage may run twice on a frame
-    }
-    rows.push_back(std::move(row));
-  }
-  double at(std::size_t frame, std::size_t stage) const {
-    return stage < rows[frame].size() ? rows[frame][stage] : 0.0;
-  }
+  LiveSource* live_;
+  const StreamPlan& plan_;
+  const slam::System& system_;
+  const PinholeCamera& camera_;
+  std::optional<FrameFeed> feed_;
 };
 
 nlohmann::json run_frames(const RunRequest& request, const std::string& source_path,
@@ -464,7 +408,7 @@ nlohmann::json run_frames(const RunRequest& request, const std::string& source_p
                           std::unique_ptr<map::Map> initial_map,
                           const std::optional<Trajectory>& groundtruth,
                           const std::optional<slam::ReadoutCalibration>& calibration,
-                          RunStatus& status) {
+                          RunStatus& status, Viewer* viewer, RunControl* control) {
   namespace fs = std::filesystem;
   const fs::path out(request.output_dir);
   slam::System system(config.camera, config.options, std::move(initial_map));
@@ -473,213 +417,66 @@ nlohmann::json run_frames(const RunRequest& request, const std::string& source_p
     detection_description = detection_source->describe();
     system.set_detection_source(std::move(detection_source), request.wait_for_detections);
   }
-  // objects.json is streamed to its temporary file frame by frame: a long run holds none of it.
-  std::optional<io::AtomicFile> objects_file;
-  if (system.detection_source()) {
-    objects_file.emplace((out / "objects.json").string());
-    objects_file->append("{\"frames\": [\n");
-  }
-  std::vector<double> detect_ms, detection_age, propagation_iou, stale_iou;
-  std::map<std::string, int> object_states;  // box-frames per state
-  int frames_with_boxes = 0, fresh_frames = 0, mover_frames = 0;
-  ProgressBar bar(request.progress, total);
 
-  StageTable stage_table;
-  std::map<std::string, std::vector<double>> stage_samples;
-  std::vector<double> tracking_ms, load_ms;
-  std::vector<double> reloc_query_ms;
-  nlohmann::json reloc_events = nlohmann::json::array();
-  bool reloc_by_database = false;
-  std::vector<float> rss_mib;
-  std::map<std::string, std::vector<double>> counts;  // per-frame feature and inlier counts
-  int lost = 0, relocalised = 0, keyframes_inserted = 0, tracked = 0;
-  std::vector<std::string> frame_prefix;
-  std::vector<PassFigures> passes;
+  // The viewer reads the System from its own thread: it lets go before the System goes, also
+  // when the run ends with an error.
+  struct DetachViewer {
+    Viewer* viewer;
+    ~DetachViewer() {
+      if (viewer) viewer->detach();
+    }
+  } detach_viewer{viewer};
+
+  // The observers of each frame's result, in the order they see it.
+  FrameRecorder recorder;
+  ObjectsRecorder objects(system.detection_source()
+                              ? std::optional<std::string>((out / "objects.json").string())
+                              : std::nullopt);
+  std::optional<OverlayWriter> overlays;
+  if (request.save_overlays) overlays.emplace(out / "overlays");
+  std::optional<CallbackObserver> callback;
+  if (request.on_frame) callback.emplace(request.on_frame);
+  std::optional<PassRecorder> passes;
+  if (plan.passes > 1) passes.emplace(recorder, plan.frames_per_pass, total);
+  Checkpointer checkpoints(out, status, request.live != nullptr, total);
+  std::optional<ProgressObserver> progress;
+  if (request.progress) progress.emplace(total, recorder);
+  std::vector<FrameObserver*> observers = {&recorder, &objects};
+  if (overlays) observers.push_back(&*overlays);
+  if (callback) observers.push_back(&*callback);
+  if (passes) observers.push_back(&*passes);
+  observers.push_back(&checkpoints);
+  if (progress) observers.push_back(&*progress);
+  if (viewer) observers.push_back(viewer);
+
+  Stopwatch wall;
+  FrameInput input(request, source, plan, total, system, config.camera);
   bool interrupted = false;
   std::size_t done = 0;
-  Stopwatch wall, checkpoint_watch, pass_watch;
-  // Soak figures of a repeated run, taken when a pass ends (or the run stops in one).
-  auto record_pass = [&] {
-    PassFigures p;
-    const std::size_t begin = passes.size() * plan.frames_per_pass;
-    for (std::size_t f = begin; f < done; ++f) p.tracking_ms.push_back(tracking_ms[f]);
-    p.frames = static_cast<int>(done - begin);
-    p.wall_s = pass_watch.elapsed_ms() / 1000.0;
-    pass_watch.restart();
-    p.rss_end_mib = current_rss_mib();
-    {
-      auto lock = system.map().read_lock();
-      p.keyframes_in_map = system.map().num_keyframes();
-      p.points_in_map = system.map().num_points();
-      p.lines_in_map = system.map().num_lines();
-    }
-    // Counters so far minus those of the passes before.
-    p.tracked = tracked;
-    p.lost = lost;
-    p.relocalised = relocalised;
-    p.keyframes_inserted = keyframes_inserted;
-    for (const PassFigures& q : passes) {
-      p.tracked -= q.tracked;
-      p.lost -= q.lost;
-      p.relocalised -= q.relocalised;
-      p.keyframes_inserted -= q.keyframes_inserted;
-    }
-    passes.push_back(std::move(p));
-  };
-  // Frames are read, decoded and undistorted on the feed's thread, off the frame loop.
-  const auto load = [&plan, &system, source, &camera = config.camera](std::size_t k) {
-    const io::RgbdImages raw = load_checked(*source, plan, k, camera);
-    return system.prepare(raw.rgb, raw.depth);
-  };
-  std::vector<double> stamps;
-  stamps.reserve(total);
-  for (std::size_t k = 0; k < total; ++k) stamps.push_back(plan.frames[k].rgb_timestamp);
-  // A live stream has no feed: its frames are prepared on this thread as they arrive.
-  std::optional<FrameFeed> feed;
-  if (!request.live) feed.emplace(load, std::move(stamps), FeedOptions{request.realtime, 2});
-  std::vector<double> latency_ms;
-  std::vector<std::size_t> dropped_before;
   std::size_t offered = 0;  // frames taken or dropped so far
   for (;;) {
     if (request.stop_requested && request.stop_requested()) {
       interrupted = true;
       break;
     }
-    // image_load is the time the frame loop waited for the feed (in real time: for the camera).
-    std::optional<FedFrame> fed;
-    double rgb_timestamp = 0.0, depth_timestamp = 0.0;
-    if (request.live) {
-      Stopwatch wait;
-      std::optional<LiveFrame> frame = request.live->next();
-      if (!frame) break;
-      if (frame->rgb.cols != config.camera.width || frame->rgb.rows != config.camera.height ||
-          frame->depth.size() != frame->rgb.size())
-        throw InputError(
-            request.live->describe() + ": frame at " + std::to_string(frame->rgb_timestamp) +
-            " s is " + std::to_string(frame->rgb.cols) + "x" + std::to_string(frame->rgb.rows) +
-            " (depth " + std::to_string(frame->depth.cols) + "x" +
-            std::to_string(frame->depth.rows) + ") but the camera is " +
-            std::to_string(config.camera.width) + "x" + std::to_string(config.camera.height));
-      fed.emplace();
-      fed->index = done;
-      fed->wait_ms = wait.elapsed_ms();
-      fed->dropped_before = frame->dropped_before;
-      fed->images = system.prepare(frame->rgb, frame->depth);
-      rgb_timestamp = frame->rgb_timestamp;
-      depth_timestamp = frame->depth_timestamp;
-    } else {
-      fed = feed->next();
-      if (!fed) break;
-      rgb_timestamp = plan.frames[fed->index].rgb_timestamp;
-      depth_timestamp = plan.frames[fed->index].depth_timestamp;
+    if (control) {
+      // Between two frames: wait while paused, switch localisation only on or off.
+      control->wait_while_paused(request.stop_requested);
+      if (request.stop_requested && request.stop_requested()) continue;
+      if (const std::optional<bool> localize = control->take_localize_change(done))
+        system.set_localize(*localize);
     }
-    const slam::PreparedImages& images = fed->images;
-    offered = fed->index + 1;
-    load_ms.push_back(fed->wait_ms);
-    dropped_before.push_back(fed->dropped_before);
-    const slam::FrameResult r = system.process(images, rgb_timestamp, depth_timestamp);
-    if (request.realtime) latency_ms.push_back(1000.0 * (feed->now_s() - fed->due_s));
+    std::optional<InputFrame> in = input.next(done);
+    if (!in) break;
+    offered = in->index + 1;
+    const slam::FrameResult r = system.process(in->images, in->rgb_timestamp, in->depth_timestamp);
     ++done;
-    tracked += r.state == slam::TrackingState::kOk ? 1 : 0;
-    lost += r.state == slam::TrackingState::kLost ? 1 : 0;
-    relocalised += r.relocalised ? 1 : 0;
-    if (r.relocalisation) {
-      reloc_query_ms.push_back(r.relocalisation->query_ms);
-      reloc_by_database = reloc_by_database || r.relocalisation->by_database;
-      if (r.relocalised)
-        reloc_events.push_back({{"frame", r.frame_id},
-                                {"timestamp", r.timestamp},
-                                {"by_database", r.relocalisation->by_database},
-                                {"keyframe", r.relocalisation->keyframe},
-                                {"score", r.relocalisation->score},
-                                {"candidates", r.relocalisation->candidates},
-                                {"query_ms", r.relocalisation->query_ms},
-                                {"match_ms", r.relocalisation->match_ms}});
-    }
-    keyframes_inserted += r.keyframe ? 1 : 0;
-    tracking_ms.push_back(r.times.total_ms());
-    rss_mib.push_back(static_cast<float>(current_rss_mib()));
-    stage_table.add_frame(r.times);
-    for (const auto& [name, ms] : r.times.stages) stage_samples[name].push_back(ms);
-    std::ostringstream prefix;
-    prefix << r.frame_id << ',' << std::fixed << std::setprecision(6) << r.timestamp << ','
-           << slam::to_string(r.state) << ',' << r.features << ',' << r.lines << ',' << r.planes
-           << ',' << r.matches << ',' << r.inliers << ',' << r.line_matches << ',' << r.line_inliers
-           << ',' << r.plane_inliers << ',' << (r.keyframe ? 1 : 0);
-    const int dynamic_points = count_labels(r.point_labels, slam::FeatureLabel::kDynamic);
-    const int constrained_points = count_labels(r.point_labels, slam::FeatureLabel::kConstrained);
-    int dynamic_objects = 0, constrained_objects = 0;
-    for (const auto& o : r.objects) {
-      dynamic_objects += o.state == slam::ObjectState::kDynamic ? 1 : 0;
-      constrained_objects += o.state == slam::ObjectState::kConstrained ? 1 : 0;
-      ++object_states[slam::to_string(o.state)];
-    }
-    prefix << ',' << r.objects.size() << ',' << dynamic_objects << ',' << constrained_objects << ','
-           << dynamic_points << ',' << constrained_points << ',' << r.constrained_point_residuals
-           << ',' << r.constrained_line_residuals;
-    if (r.detections_used) {
-      detection_age.push_back(r.detections_age);
-      if (r.detect_ms) detect_ms.push_back(*r.detect_ms);
-      const nlohmann::json frame_objects = {
-          {"frame", r.frame_id},
-          {"timestamp", r.timestamp},
-          {"fresh", r.detections_fresh},
-          {"epsilon_d_px", r.dynamics_threshold},
-          {"age", r.detections_age},
-          {"dynamic_points", dynamic_points},
-          {"constrained_points", constrained_points},
-          {"dynamic_lines", count_labels(r.line_labels, slam::FeatureLabel::kDynamic)},
-          {"constrained_lines", count_labels(r.line_labels, slam::FeatureLabel::kConstrained)},
-          {"constrained_residuals", {r.constrained_point_residuals, r.constrained_line_residuals}},
-          {"mover_regions", r.mover_regions},
-          {"mover_points", r.mover_points},
-          {"objects", objects_json(r)}};
-      if (r.propagation_iou >= 0.0) {
-        propagation_iou.push_back(r.propagation_iou);
-        stale_iou.push_back(r.stale_iou);
-      }
-      mover_frames += r.mover_regions > 0 ? 1 : 0;
-      objects_file->append((frames_with_boxes > 0 ? ",\n" : "") + frame_objects.dump(1));
-      ++frames_with_boxes;
-      fresh_frames += r.detections_fresh ? 1 : 0;
-      counts["dynamic_points"].push_back(dynamic_points);
-      counts["constrained_points"].push_back(constrained_points);
-    }
-    if (request.save_overlays) {
-      cv::Mat overlay = system.undistort(images.rgb);
-      if (overlay.channels() == 3) {
-        overlay = overlay.clone();
-        draw_overlay(overlay, r);
-        char name[32];
-        std::snprintf(name, sizeof(name), "%06llu.jpg",
-                      static_cast<unsigned long long>(r.frame_id));
-        const std::string path = (out / "overlays" / name).string();
-        if (!cv::imwrite(path, overlay)) throw InputError(file_error(path, "cannot write"));
-      }
-    }
-    counts["points"].push_back(r.features);
-    counts["lines"].push_back(r.lines);
-    counts["planes"].push_back(r.planes);
-    if (r.state == slam::TrackingState::kOk) {
-      counts["point_inliers"].push_back(r.inliers);
-      counts["line_inliers"].push_back(r.line_inliers);
-      counts["plane_inliers"].push_back(r.plane_inliers);
-    }
-    frame_prefix.push_back(prefix.str());
-    if (request.on_frame) request.on_frame(r, images, system);
-
-    if (plan.passes > 1 && (done % plan.frames_per_pass == 0 || done == total)) record_pass();
-    // A checkpoint every few seconds: what a kill would leave is a clearly partial run.
-    if (checkpoint_watch.elapsed_ms() > 2000.0 && (request.live || offered < total)) {
-      io::write_tum_trajectory((out / "trajectory_online.txt").string(), system.online_trajectory(),
-                               "partial: the run was at frame " + std::to_string(offered) + " of " +
-                                   std::to_string(total) + " (see status.json)");
-      status.running(offered);
-      checkpoint_watch.restart();
-    }
-    bar.update(offered, done / (wall.elapsed_ms() / 1000.0), lost);
+    FrameEvent event{r,           in->images,         system,      in->rgb_timestamp, done, offered,
+                     in->wait_ms, in->dropped_before, std::nullopt};
+    if (request.realtime) event.latency_ms = 1000.0 * (input.now_s() - in->due_s);
+    for (FrameObserver* o : observers) o->on_frame(event);
   }
-  if (plan.passes > 1 && done > passes.size() * plan.frames_per_pass) record_pass();  // stopped
+  for (FrameObserver* o : observers) o->on_stream_end(system);
   system.finish();
   const double wall_s = wall.elapsed_ms() / 1000.0;
   if (request.save_session) system.save_session(*request.save_session);
@@ -696,25 +493,7 @@ nlohmann::json run_frames(const RunRequest& request, const std::string& source_p
                            note);
   io::write_file_atomic((out / "keyframes.txt").string(),
                         format_tum_keyframes(system.keyframe_trajectory()));
-  std::ostringstream csv;
-  csv << "frame,timestamp,state,points,lines,planes,point_matches,point_inliers,line_matches,"
-         "line_inliers,plane_inliers,keyframe,objects,dynamic_objects,constrained_objects,"
-         "dynamic_points,constrained_points,constrained_point_residuals,"
-         "constrained_line_residuals";
-  for (const auto& name : stage_table.names) csv << ',' << name << "_ms";
-  csv << ",total_ms,rss_mib";
-  // In real time: the frames dropped just before each processed one, and its latency (from the
-  // frame's time to its pose).
-  if (request.realtime) csv << ",dropped_before,latency_ms";
-  csv << '\n';
-  for (std::size_t i = 0; i < frame_prefix.size(); ++i) {
-    csv << frame_prefix[i] << std::fixed << std::setprecision(3);
-    for (std::size_t k = 0; k < stage_table.names.size(); ++k) csv << ',' << stage_table.at(i, k);
-    csv << ',' << tracking_ms[i] << ',' << std::setprecision(1) << rss_mib[i];
-    if (request.realtime) csv << ',' << dropped_before[i] << ',' << latency_ms[i];
-    csv << '\n';
-  }
-  io::write_file_atomic((out / "timings.csv").string(), csv.str());
+  io::write_file_atomic((out / "timings.csv").string(), recorder.timings_csv(request.realtime));
 
   nlohmann::json summary;
   summary["state"] = interrupted ? "interrupted" : "complete";
@@ -735,19 +514,21 @@ nlohmann::json run_frames(const RunRequest& request, const std::string& source_p
   if (calibration) summary["readout"]["calibration"] = calibration_json(*calibration);
   summary["sequential"] = config.options.sequential;
   summary["frames"] = processed;
-  summary["tracked_frames"] = tracked;
-  summary["tracked_ratio"] = processed == 0 ? 0.0 : static_cast<double>(tracked) / processed;
-  summary["lost_frames"] = lost;
-  summary["not_initialized_frames"] = static_cast<int>(processed) - tracked - lost;
-  summary["relocalisations"] = relocalised;
+  summary["tracked_frames"] = recorder.tracked;
+  summary["tracked_ratio"] =
+      processed == 0 ? 0.0 : static_cast<double>(recorder.tracked) / processed;
+  summary["lost_frames"] = recorder.lost;
+  summary["not_initialized_frames"] =
+      static_cast<int>(processed) - recorder.tracked - recorder.lost;
+  summary["relocalisations"] = recorder.relocalised;
   {
-    const SampleStats q = compute_stats(reloc_query_ms);
-    summary["relocalisation"] = {{"attempts", reloc_query_ms.size()},
-                                 {"succeeded", relocalised},
-                                 {"by_database", reloc_by_database},
+    const SampleStats q = compute_stats(recorder.reloc_query_ms);
+    summary["relocalisation"] = {{"attempts", recorder.reloc_query_ms.size()},
+                                 {"succeeded", recorder.relocalised},
+                                 {"by_database", recorder.reloc_by_database},
                                  {"query_median_ms", q.median},
                                  {"query_p95_ms", q.p95},
-                                 {"events", reloc_events}};
+                                 {"events", recorder.reloc_events}};
   }
   summary["loops"] = loops_json(system.loop_statistics(), config.options.place);
   const slam::SolverStatistics solver = system.solver_statistics();
@@ -758,7 +539,7 @@ nlohmann::json run_frames(const RunRequest& request, const std::string& source_p
   summary["session"] = {{"loaded", request.load_session.value_or("")},
                         {"localize", config.options.localize},
                         {"saved", request.save_session.value_or("")}};
-  summary["keyframes_inserted"] = keyframes_inserted;
+  summary["keyframes_inserted"] = recorder.keyframes_inserted;
   {
     auto lock = system.map().read_lock();
     summary["keyframes_in_map"] = system.map().num_keyframes();
@@ -775,7 +556,7 @@ nlohmann::json run_frames(const RunRequest& request, const std::string& source_p
                          {"lines", config.options.use.lines},
                          {"planes", config.options.use.planes}};
   nlohmann::json per_frame = nlohmann::json::object();
-  for (const auto& [name, samples] : counts) {
+  for (const auto& [name, samples] : recorder.counts) {
     const SampleStats st = compute_stats(samples);
     per_frame[name] = {{"median", st.median}, {"mean", st.mean}, {"max", st.max}};
   }
@@ -785,20 +566,21 @@ nlohmann::json run_frames(const RunRequest& request, const std::string& source_p
     d["source"] = detection_description.empty() ? "none (geometry only)" : detection_description;
     d["enabled"] = config.options.tracker.dynamics.enabled && !detection_description.empty();
     d["constraints"] = config.options.tracker.dynamics.constraints;
-    d["frames_with_boxes"] = frames_with_boxes;
-    d["fresh_frames"] = fresh_frames;
-    d["fresh_ratio"] =
-        frames_with_boxes == 0 ? 0.0 : static_cast<double>(fresh_frames) / frames_with_boxes;
-    d["median_age_frames"] = compute_stats(detection_age).median;
-    const SampleStats det = compute_stats(detect_ms);
+    d["frames_with_boxes"] = objects.frames_with_boxes;
+    d["fresh_frames"] = objects.fresh_frames;
+    d["fresh_ratio"] = objects.frames_with_boxes == 0
+                           ? 0.0
+                           : static_cast<double>(objects.fresh_frames) / objects.frames_with_boxes;
+    d["median_age_frames"] = compute_stats(objects.detection_age).median;
+    const SampleStats det = compute_stats(objects.detect_ms);
     d["detector_ms"] = {{"median", det.median}, {"p95", det.p95}, {"count", det.count}};
-    d["object_frames"] = object_states;  // box-frames per state
+    d["object_frames"] = objects.object_states;  // box-frames per state
     // Boxes carried forward against the detector's next boxes (see ObjectOutputs).
     d["propagation"] = {{"enabled", config.options.tracker.dynamics.propagate_boxes},
-                        {"measured", propagation_iou.size()},
-                        {"iou_median", compute_stats(propagation_iou).median},
-                        {"stale_iou_median", compute_stats(stale_iou).median}};
-    d["mover_frames"] = mover_frames;  // frames where motion without a box was found
+                        {"measured", objects.propagation_iou.size()},
+                        {"iou_median", compute_stats(objects.propagation_iou).median},
+                        {"stale_iou_median", compute_stats(objects.stale_iou).median}};
+    d["mover_frames"] = objects.mover_frames;  // frames where motion without a box was found
     // Every forward pass of a model, whichever frame used its boxes: the detector's actual rate.
     // (none for boxes from a file)
     const std::vector<double> passes_ms = system.detection_source()
@@ -811,14 +593,11 @@ nlohmann::json run_frames(const RunRequest& request, const std::string& source_p
       d["detector_pass_ms"] = {{"median", pass.median}, {"p95", pass.p95}};
     }
     summary["dynamics"] = d;
-    if (objects_file && frames_with_boxes > 0) {
-      objects_file->append("\n]}\n");
-      objects_file->commit();
-    }
+    objects.commit();
   }
   if (request.realtime) {
-    const std::vector<std::size_t> dropped = feed->dropped();
-    const SampleStats latency = compute_stats(latency_ms);
+    const std::vector<std::size_t> dropped = input.dropped();
+    const SampleStats latency = compute_stats(recorder.latency_ms);
     summary["realtime"] = {
         {"enabled", true},
         {"frames_offered", offered},
@@ -826,27 +605,31 @@ nlohmann::json run_frames(const RunRequest& request, const std::string& source_p
         {"frames_dropped", dropped.size()},
         {"processed_ratio", offered == 0 ? 0.0 : static_cast<double>(processed) / offered},
         // Tracked frames over the frames the camera delivered: dropped frames count as missing.
-        {"coverage", offered == 0 ? 0.0 : static_cast<double>(tracked) / offered},
+        {"coverage", offered == 0 ? 0.0 : static_cast<double>(recorder.tracked) / offered},
         {"latency_median_ms", latency.median},
         {"latency_p95_ms", latency.p95},
         {"latency_max_ms", latency.max}};
   }
   summary["wall_time_s"] = wall_s;
-  summary["frames_per_second"] = wall_s > 0 ? processed / wall_s : 0.0;
+  // Time spent paused from the viewer does not count against the frame rate.
+  const double running_s = wall_s - (control ? control->paused_ms() / 1000.0 : 0.0);
+  summary["frames_per_second"] = running_s > 0 ? processed / running_s : 0.0;
+  if (control) summary["controls"] = control->summary();
+  if (viewer) summary["viewer"] = viewer->summary();
   summary["peak_rss_mib"] = peak_rss_mib();
   nlohmann::json stages = nlohmann::json::object();
-  for (const auto& name : stage_table.names) {
+  for (const auto& name : recorder.stage_table.names) {
     // Stages that did not run on a frame count as 0 there only for the per-frame total.
-    const SampleStats s = compute_stats(stage_samples[name]);
+    const SampleStats s = compute_stats(recorder.stage_samples[name]);
     stages[name] = {
         {"median_ms", s.median}, {"p95_ms", s.p95}, {"mean_ms", s.mean}, {"frames", s.count}};
   }
-  const SampleStats track_stats = compute_stats(tracking_ms);
+  const SampleStats track_stats = compute_stats(recorder.tracking_ms);
   stages["tracking_total"] = {{"median_ms", track_stats.median},
                               {"p95_ms", track_stats.p95},
                               {"mean_ms", track_stats.mean},
                               {"frames", track_stats.count}};
-  const SampleStats load_stats = compute_stats(load_ms);
+  const SampleStats load_stats = compute_stats(recorder.load_ms);
   stages["image_load"] = {{"median_ms", load_stats.median},
                           {"p95_ms", load_stats.p95},
                           {"mean_ms", load_stats.mean},
@@ -876,8 +659,8 @@ nlohmann::json run_frames(const RunRequest& request, const std::string& source_p
   if (plan.passes > 1) {
     summary["repeat"] = plan.passes;
     nlohmann::json pass_rows = nlohmann::json::array();
-    for (std::size_t k = 0; k < passes.size(); ++k) {
-      const PassFigures& p = passes[k];
+    for (std::size_t k = 0; k < passes->passes().size(); ++k) {
+      const PassFigures& p = passes->passes()[k];
       const SampleStats t = compute_stats(p.tracking_ms);
       nlohmann::json row = {{"pass", k + 1},
                             {"frames", p.frames},
@@ -1016,9 +799,22 @@ nlohmann::json run_sequence(const RunRequest& request) {
                   << " over the first " << calibration->frames << " frames in "
                   << std::setprecision(1) << calibration->wall_ms / 1e3 << " s)\n";
     }
+    // The viewer listens before the run starts, so that a port in use is reported at once.
+    std::optional<RunControl> control;
+    std::unique_ptr<Viewer> viewer;
+    if (request.viewer) {
+      control.emplace(config.options.localize);
+      viewer = std::make_unique<Viewer>(*request.viewer, *control, source_path, total, groundtruth);
+      const std::string& bind = request.viewer->server.bind;
+      if (bind != "127.0.0.1" && bind != "::1")
+        std::cerr << "mcslam: warning: the viewer listens on " << bind
+                  << ", not only on this machine: anyone who can reach it can watch and pause "
+                     "the run (see docs/viewer.md for an SSH tunnel instead)\n";
+      std::cerr << "mcslam: viewer at " << viewer->url() << "\n";
+    }
     return run_frames(request, source_path, source.get(), warnings, plan, total, config,
                       std::move(detection_source), std::move(initial_map), groundtruth, calibration,
-                      status);
+                      status, viewer.get(), control ? &*control : nullptr);
   } catch (const InputError& e) {
     status.failed(e.what());
     throw;

@@ -390,6 +390,8 @@ void System::save_session(const std::string& path) const {
   map::save_session(path, *map_, info);
 }
 
+void System::set_localize(bool localize) { tracker_->set_localize(localize); }
+
 LoopStatistics System::loop_statistics() const {
   return loop_closer_ ? loop_closer_->statistics() : LoopStatistics{};
 }

@@ -1,6 +1,9 @@
 // The bad-input matrix: each broken input, given to the real `mcslam` binary, ends with exit code
 // 1, one "mcslam: error:" line naming the file and the problem, no crash, and no trajectory.
+#include <arpa/inet.h>
 #include <gtest/gtest.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
 
 #include <filesystem>
 #include <fstream>
@@ -323,6 +326,32 @@ const std::vector<Case>& cases() {
          return "run " + quote(s.seq.string()) + " --output " + quote(s.file("file/out")) + " -q";
        },
        {"{dir}/file"}},
+      {"ViewerPortNotANumber",
+       [](const CaseDir& s) { return s.run("--viewer 80x"); },
+       {"--viewer", "0 to 65535", "'80x'"}},
+      {"ViewerPortOutOfRange",
+       [](const CaseDir& s) { return s.run("--viewer 65536"); },
+       {"--viewer", "0 to 65535"}},
+      {"ViewerBindNotAnAddress",
+       [](const CaseDir& s) { return s.run("--viewer 0 --viewer-bind robot.local"); },
+       {"--viewer-bind", "'robot.local' is not an IP address"}},
+      {"ViewerBindWithoutViewer",
+       [](const CaseDir& s) { return s.run("--viewer-bind 0.0.0.0"); },
+       {"--viewer-bind", "only with --viewer"}},
+      {"ViewerPortInUse",
+       [](const CaseDir& s) {
+         // A socket listening for the rest of the test process (left open on purpose).
+         const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+         sockaddr_in address{};
+         address.sin_family = AF_INET;
+         address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+         ::bind(fd, reinterpret_cast<sockaddr*>(&address), sizeof(address));
+         ::listen(fd, 1);
+         socklen_t length = sizeof(address);
+         ::getsockname(fd, reinterpret_cast<sockaddr*>(&address), &length);
+         return s.run("--viewer " + std::to_string(ntohs(address.sin_port)));
+       },
+       {"--viewer", "cannot listen on 127.0.0.1:", "in use"}},
   };
   return all;
 }

@@ -8,6 +8,7 @@
 #include <optional>
 #include <string>
 
+#include "mcslam/app/viewer.hpp"
 #include "mcslam/io/frame_source.hpp"
 #include "mcslam/slam/system.hpp"
 
@@ -97,6 +98,10 @@ struct RunRequest {
   /// Asked between frames; when it returns true the run stops early, writes every output for the
   /// frames processed so far and marks them interrupted (Ctrl-C in the command-line app).
   std::function<bool()> stop_requested;
+  /// Serve the live viewer (--viewer [PORT], --viewer-bind ADDR): the current frame with its
+  /// overlay, the 3D map, live figures, pause/resume and localisation only (app/viewer.hpp).
+  /// summary.json then has "viewer" and "controls" (pauses, the localisation switches).
+  std::optional<ViewerOptions> viewer;
 };
 
 /// Annotates an (undistorted) colour image as in the paper's Fig. 7: static points green, lines

@@ -167,6 +167,9 @@ class System {
   /// estimated. Call from the thread that calls process().
   ReadoutReport readout_report() const;
   const SystemOptions& options() const { return options_; }
+  /// Switches to localisation only (tracking inserts no keyframe, so the map is only read) or
+  /// back to mapping, from the next frame on. Call from the thread that calls process().
+  void set_localize(bool localize);
 
  private:
   struct FrameRecord {

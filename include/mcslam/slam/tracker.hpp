@@ -106,6 +106,8 @@ class Tracker {
   /// new keyframes are numbered after its own. With `localize`, no keyframe is ever requested:
   /// the map is only read.
   void start_in_map(map::KeyFrameId next_keyframe_id, bool localize);
+  /// Localisation only (no keyframe is requested) or mapping, from the next frame on.
+  void set_localize(bool localize) { localize_ = localize; }
   /// The camera's motion over `dt` seconds at the current velocity estimate, as the transform
   /// from the camera at time t to the camera at t + dt; nullopt without an estimate.
   std::optional<SE3> predicted_motion(double dt) const;

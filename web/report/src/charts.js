@@ -4,8 +4,8 @@ import {
   Chart, ScatterController, BarController, LineElement, PointElement, BarElement,
   LinearScale, CategoryScale, Legend, Tooltip,
 } from 'chart.js';
-import { h, note } from './dom.js';
-import { isNum } from './format.js';
+import { h, note } from '../../shared/dom.js';
+import { isNum } from '../../shared/format.js';
 import { GROUND_TRUTH_COLOR } from './colors.js';
 
 Chart.register(ScatterController, BarController, LineElement, PointElement, BarElement,

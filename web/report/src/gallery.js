@@ -1,6 +1,6 @@
 // Annotated frames: a gallery of the overlay JPEGs with captions; click to enlarge.
-import { h, note } from './dom.js';
-import { isNum } from './format.js';
+import { h, note } from '../../shared/dom.js';
+import { isNum } from '../../shared/format.js';
 
 let viewer = null;
 

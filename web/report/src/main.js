@@ -1,7 +1,7 @@
 // Entry point of the mcslam bench report. Reads the JSON in #mcslam-data and builds
 // the whole page; sets body[data-ready="true"] once everything has rendered.
 import css from './style.css';
-import { h, append, note, guarded, slug } from './dom.js';
+import { h, append, note, guarded, slug } from '../../shared/dom.js';
 import { makeConfigColors, makeStageColors } from './colors.js';
 import {
   header, overview, sequenceCards, sequenceMeta, ablationTable, runDetails,

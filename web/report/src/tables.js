@@ -1,7 +1,7 @@
 // Header, summary cards, ablation table, per-run details, published figures,
 // failed runs and the raw Markdown.
-import { h, note } from './dom.js';
-import { isNum, num, withUnit, range, duration, dateTime, text, DASH } from './format.js';
+import { h, note } from '../../shared/dom.js';
+import { isNum, num, withUnit, range, duration, dateTime, text, DASH } from '../../shared/format.js';
 
 // The ablation table's metric columns. "better" tells which end is highlighted.
 const METRICS = [

@@ -1,0 +1,313 @@
+// The live viewer's server against bad requests and bad clients: unknown paths, path traversal,
+// other methods, malformed HTTP, malformed and oversized WebSocket frames, a client that never
+// reads, several clients at once, a port in use, a bad bind address. Raw sockets, so that the
+// bytes sent are exactly the bad ones.
+#include "mcslam/app/viewer_server.hpp"
+
+#include <arpa/inet.h>
+#include <gtest/gtest.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "mcslam/core/error.hpp"
+
+namespace mcslam::app {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+class Socket {
+ public:
+  explicit Socket(int port, int receive_buffer = 0) {
+    fd_ = ::socket(AF_INET, SOCK_STREAM, 0);
+    if (receive_buffer > 0)
+      ::setsockopt(fd_, SOL_SOCKET, SO_RCVBUF, &receive_buffer, sizeof(receive_buffer));
+    sockaddr_in address{};
+    address.sin_family = AF_INET;
+    address.sin_port = htons(static_cast<std::uint16_t>(port));
+    address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    connected_ = ::connect(fd_, reinterpret_cast<sockaddr*>(&address), sizeof(address)) == 0;
+  }
+  ~Socket() { ::close(fd_); }
+  bool connected() const { return connected_; }
+  void send(const std::string& bytes) {
+    std::size_t sent = 0;
+    while (sent < bytes.size()) {
+      const ssize_t n = ::send(fd_, bytes.data() + sent, bytes.size() - sent, MSG_NOSIGNAL);
+      if (n <= 0) return;
+      sent += static_cast<std::size_t>(n);
+    }
+  }
+  /// Everything until the peer closes or `timeout_ms` passes (or `until` appears).
+  std::string receive(int timeout_ms, const std::string& until = "") {
+    std::string out = std::move(leftover);
+    leftover.clear();
+    if (!until.empty() && out.find(until) != std::string::npos) return out;
+    const auto end = Clock::now() + std::chrono::milliseconds(timeout_ms);
+    while (Clock::now() < end) {
+      pollfd p{fd_, POLLIN, 0};
+      if (::poll(&p, 1, 50) <= 0) continue;
+      char buffer[65536];
+      const ssize_t n = ::recv(fd_, buffer, sizeof(buffer), 0);
+      if (n <= 0) {
+        closed_ = true;
+        break;
+      }
+      out.append(buffer, static_cast<std::size_t>(n));
+      if (!until.empty() && out.find(until) != std::string::npos) break;
+    }
+    return out;
+  }
+  bool closed() const { return closed_; }
+  std::string leftover;  // received after the handshake's reply, for the next receive()
+
+ private:
+  int fd_ = -1;
+  bool connected_ = false;
+  bool closed_ = false;
+};
+
+std::string get(int port, const std::string& request_line) {
+  Socket s(port);
+  s.send(request_line + "\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n");
+  return s.receive(3000);
+}
+
+/// A client frame: FIN, the opcode, masked with a zero key (so the payload is as given).
+std::string client_frame(std::uint8_t opcode, const std::string& payload, bool masked = true) {
+  std::string f;
+  f.push_back(static_cast<char>(0x80 | opcode));
+  const std::uint8_t mask_bit = masked ? 0x80 : 0x00;
+  if (payload.size() < 126) {
+    f.push_back(static_cast<char>(mask_bit | payload.size()));
+  } else if (payload.size() < 65536) {
+    f.push_back(static_cast<char>(mask_bit | 126));
+    f.push_back(static_cast<char>(payload.size() >> 8));
+    f.push_back(static_cast<char>(payload.size() & 0xff));
+  } else {
+    f.push_back(static_cast<char>(mask_bit | 127));
+    for (int k = 7; k >= 0; --k) f.push_back(static_cast<char>((payload.size() >> (8 * k)) & 0xff));
+  }
+  if (masked) f.append(4, '\0');
+  return f + payload;
+}
+
+/// Opens a WebSocket on `s`; true when the server switched protocols.
+bool handshake(Socket& s, const std::string& path = "/ws") {
+  s.send("GET " + path +
+         " HTTP/1.1\r\nHost: 127.0.0.1\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+         "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n\r\n");
+  const std::string reply = s.receive(3000, "\r\n\r\n");
+  const std::size_t end = reply.find("\r\n\r\n");
+  if (end != std::string::npos) s.leftover = reply.substr(end + 4);
+  return reply.rfind("HTTP/1.1 101", 0) == 0;
+}
+
+struct Fixture {
+  explicit Fixture(ViewerServerOptions options = {}) {
+    options.port = 0;
+    std::map<std::string, ServedFile> files;
+    files["/"] = {"text/html", "<p>page</p>"};
+    files["/viewer.js"] = {"text/javascript", "// script"};
+    server = std::make_unique<ViewerServer>(options, files, [this](const std::string& text) {
+      std::lock_guard<std::mutex> lock(mutex);
+      messages.push_back(text);
+    });
+  }
+  std::size_t message_count() {
+    std::lock_guard<std::mutex> lock(mutex);
+    return messages.size();
+  }
+  template <typename P>
+  bool wait_for(P predicate, int timeout_ms = 5000) {
+    const auto end = Clock::now() + std::chrono::milliseconds(timeout_ms);
+    while (Clock::now() < end) {
+      if (predicate()) return true;
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+    return predicate();
+  }
+  std::unique_ptr<ViewerServer> server;
+  std::mutex mutex;
+  std::vector<std::string> messages;
+};
+
+TEST(ViewerServer, ServesItsFilesAndNothingElse) {
+  Fixture f;
+  const int port = f.server->port();
+  EXPECT_NE(get(port, "GET / HTTP/1.1").find("<p>page</p>"), std::string::npos);
+  EXPECT_EQ(get(port, "GET /viewer.js?v=1 HTTP/1.1").rfind("HTTP/1.1 200", 0), 0u);
+  EXPECT_EQ(get(port, "GET /nothing HTTP/1.1").rfind("HTTP/1.1 404", 0), 0u);
+  EXPECT_EQ(get(port, "GET /../../etc/passwd HTTP/1.1").rfind("HTTP/1.1 404", 0), 0u);
+  EXPECT_EQ(get(port, "GET /%2e%2e/%2e%2e/etc/passwd HTTP/1.1").rfind("HTTP/1.1 404", 0), 0u);
+  EXPECT_EQ(get(port, "GET ../viewer.js HTTP/1.1").rfind("HTTP/1.1 404", 0), 0u);
+  EXPECT_EQ(get(port, "POST / HTTP/1.1").rfind("HTTP/1.1 405", 0), 0u);
+  EXPECT_EQ(get(port, "DELETE /viewer.js HTTP/1.1").rfind("HTTP/1.1 405", 0), 0u);
+  const std::string head = get(port, "HEAD / HTTP/1.1");
+  EXPECT_EQ(head.rfind("HTTP/1.1 200", 0), 0u);
+  EXPECT_EQ(head.find("<p>page</p>"), std::string::npos);
+}
+
+TEST(ViewerServer, MalformedAndOversizedRequestsGetAnErrorOrAClose) {
+  Fixture f;
+  const int port = f.server->port();
+  {
+    Socket s(port);
+    s.send("THIS IS NOT HTTP\r\n\r\n");
+    const std::string reply = s.receive(3000);
+    EXPECT_EQ(reply.rfind("HTTP/1.1 400", 0), 0u) << reply;
+  }
+  {
+    Socket s(port);
+    s.send("GET / HTTP/1.1\r\nHost: x\r\nX-Big: " + std::string(64 * 1024, 'a') + "\r\n\r\n");
+    const std::string reply = s.receive(3000);
+    EXPECT_TRUE(reply.rfind("HTTP/1.1 400", 0) == 0 || s.closed()) << reply.substr(0, 80);
+  }
+  {
+    Socket s(port);  // a body larger than the limit
+    s.send("GET / HTTP/1.1\r\nHost: x\r\nContent-Length: 100000\r\n\r\n" +
+           std::string(100000, 'b'));
+    const std::string reply = s.receive(3000);
+    EXPECT_TRUE(reply.rfind("HTTP/1.1 400", 0) == 0 || s.closed()) << reply.substr(0, 80);
+  }
+  {
+    Socket s(port);  // an upgrade to another path
+    EXPECT_FALSE(handshake(s, "/other"));
+  }
+  // The server still answers.
+  EXPECT_NE(get(port, "GET / HTTP/1.1").find("<p>page</p>"), std::string::npos);
+}
+
+TEST(ViewerServer, AClientThatSendsNothingIsClosedAfterTheTimeout) {
+  ViewerServerOptions options;
+  options.handshake_timeout_s = 0.5;
+  Fixture f(options);
+  Socket s(f.server->port());
+  s.send("GET / HTTP/1.1\r\n");  // and never the rest
+  s.receive(3000);
+  EXPECT_TRUE(s.closed());
+}
+
+TEST(ViewerServer, WebSocketMessagesReachTheHandler) {
+  Fixture f;
+  Socket s(f.server->port());
+  ASSERT_TRUE(handshake(s));
+  s.send(client_frame(0x1, R"({"cmd": "pause"})"));
+  ASSERT_TRUE(f.wait_for([&] { return f.message_count() == 1; }));
+  EXPECT_EQ(f.messages[0], R"({"cmd": "pause"})");
+}
+
+TEST(ViewerServer, MalformedWebSocketFramesCloseTheConnection) {
+  Fixture f;
+  const int port = f.server->port();
+  {
+    Socket s(port);  // a client frame must be masked
+    ASSERT_TRUE(handshake(s));
+    s.send(client_frame(0x1, "unmasked", false));
+    s.receive(3000);
+    EXPECT_TRUE(s.closed());
+  }
+  {
+    Socket s(port);  // a reserved opcode
+    ASSERT_TRUE(handshake(s));
+    s.send(client_frame(0x3, "reserved"));
+    s.receive(3000);
+    EXPECT_TRUE(s.closed());
+  }
+  {
+    Socket s(port);  // random bytes
+    ASSERT_TRUE(handshake(s));
+    s.send(std::string("\xff\xff\xff\xff\x00\x01garbage", 14));
+    s.receive(3000);
+    EXPECT_TRUE(s.closed());
+  }
+  {
+    Socket s(port);  // larger than max_message_bytes
+    ASSERT_TRUE(handshake(s));
+    s.send(client_frame(0x1, std::string(100000, 'x')));
+    s.receive(3000);
+    EXPECT_TRUE(s.closed());
+  }
+  EXPECT_EQ(f.message_count(), 0u);
+  EXPECT_TRUE(f.wait_for([&] { return f.server->stats().clients == 0; }));
+  // Still serving.
+  Socket good(port);
+  ASSERT_TRUE(handshake(good));
+  good.send(client_frame(0x1, "ok"));
+  EXPECT_TRUE(f.wait_for([&] { return f.message_count() == 1; }));
+}
+
+TEST(ViewerServer, SeveralClientsGetTheNewestMessage) {
+  Fixture f;
+  const int port = f.server->port();
+  std::vector<std::unique_ptr<Socket>> clients;
+  for (int k = 0; k < 3; ++k) {
+    clients.push_back(std::make_unique<Socket>(port));
+    ASSERT_TRUE(handshake(*clients.back()));
+  }
+  ASSERT_TRUE(f.wait_for([&] { return f.server->stats().clients == 3; }));
+  f.server->publish(ViewerChannel::kStats, "hello-all", false);
+  for (auto& c : clients)
+    EXPECT_NE(c->receive(3000, "hello-all").find("hello-all"), std::string::npos);
+  // A client that connects later gets the newest message of the channel at once.
+  Socket late(port);
+  ASSERT_TRUE(handshake(late));
+  EXPECT_NE(late.receive(3000, "hello-all").find("hello-all"), std::string::npos);
+}
+
+TEST(ViewerServer, AClientThatNeverReadsNeitherBlocksPublishNorOthers) {
+  ViewerServerOptions options;
+  options.write_timeout_s = 0.5;
+  Fixture f(options);
+  const int port = f.server->port();
+  Socket stalled(port, 4096);  // connects, then never reads
+  ASSERT_TRUE(handshake(stalled));
+  Socket reader(port);
+  ASSERT_TRUE(handshake(reader));
+  ASSERT_TRUE(f.wait_for([&] { return f.server->stats().clients == 2; }));
+  const std::string big(1 << 20, 'm');
+  double slowest_ms = 0.0;
+  for (int k = 0; k < 60; ++k) {
+    const auto start = Clock::now();
+    f.server->publish(ViewerChannel::kFrame, big, true);
+    slowest_ms = std::max(slowest_ms,
+                          std::chrono::duration<double, std::milli>(Clock::now() - start).count());
+    reader.receive(20);  // the good client keeps reading
+  }
+  EXPECT_LT(slowest_ms, 100.0);  // publish never waits for a client
+  EXPECT_TRUE(f.wait_for([&] { return f.server->stats().clients_dropped >= 1; }));
+  EXPECT_GT(f.server->stats().messages_dropped, 0u);  // newest wins
+  f.server->publish(ViewerChannel::kStats, "still-here", false);
+  EXPECT_NE(reader.receive(5000, "still-here").find("still-here"), std::string::npos);
+}
+
+TEST(ViewerServer, APortInUseOrABadAddressIsAnInputError) {
+  Fixture f;
+  ViewerServerOptions same;
+  same.port = f.server->port();
+  try {
+    ViewerServer second(same, {}, nullptr);
+    FAIL() << "a second server on the same port";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("cannot listen on 127.0.0.1:"), std::string::npos)
+        << e.what();
+  }
+  ViewerServerOptions bad;
+  bad.bind = "not-an-address";
+  EXPECT_THROW(ViewerServer(bad, {}, nullptr), InputError);
+  bad.bind = "127.0.0.1";
+  bad.port = 70000;
+  EXPECT_THROW(ViewerServer(bad, {}, nullptr), InputError);
+}
+
+}  // namespace
+}  // namespace mcslam::app
