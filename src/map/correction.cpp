@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <optional>
-#include <unordered_set>
 
 namespace mcslam::map {
 
@@ -23,12 +22,9 @@ KeyFrameId reference_keyframe(const Map& map, KeyFrameId first, const Observatio
 void apply_correction(Map& map, const MapCorrection& correction) {
   if (correction.after.empty()) return;
   map.count_correction();
-  std::unordered_set<PointId> observations_changed;
+  // erase_observation recomputes the descriptor of a point that loses an observation.
   for (const auto& [kf, point] : correction.point_outliers)
-    if (map.point(point) != nullptr) {
-      map.erase_observation(point, kf);
-      observations_changed.insert(point);
-    }
+    if (map.point(point) != nullptr) map.erase_observation(point, kf);
   for (const auto& [kf, line] : correction.line_outliers)
     if (map.line(line) != nullptr) map.erase_line_observation(line, kf);
   for (const auto& [kf, plane] : correction.plane_outliers)
@@ -98,11 +94,7 @@ void apply_correction(Map& map, const MapCorrection& correction) {
     } else if (solved == correction.points.end()) {
       continue;  // neither solved nor moved: nothing about it changed
     }
-    // The descriptor depends on the observations only: recomputed where they changed.
-    if (observations_changed.count(id) != 0)
-      map.update_point_appearance(id);
-    else
-      map.update_point_geometry(id);
+    map.update_point_geometry(id);  // a move changes no descriptor
   }
   std::vector<LineId> line_ids;
   for (const auto& [id, l] : map.lines()) line_ids.push_back(id);

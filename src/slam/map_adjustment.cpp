@@ -131,12 +131,10 @@ MapAdjustment build_adjustment(const map::Map& map, const std::vector<map::KeyFr
 
 void apply_adjustment(map::Map& map, const MapAdjustment& a,
                       const optim::BundleAdjustmentResult& result) {
-  std::unordered_set<map::PointId> observations_changed;
+  // Map::erase_observation recomputes the descriptor of a point that loses an observation.
   for (std::size_t k = 0; k < a.observation_ids.size(); ++k)
-    if (!result.inlier[k]) {
+    if (!result.inlier[k])
       map.erase_observation(a.observation_ids[k].second, a.observation_ids[k].first);
-      observations_changed.insert(a.observation_ids[k].second);
-    }
   for (std::size_t k = 0; k < a.line_observation_ids.size(); ++k)
     if (!result.line_inlier[k])
       map.erase_line_observation(a.line_observation_ids[k].second, a.line_observation_ids[k].first);
@@ -150,11 +148,7 @@ void apply_adjustment(map::Map& map, const MapAdjustment& a,
   for (std::size_t k = 0; k < a.point_ids.size(); ++k) {
     if (map.point(a.point_ids[k]) == nullptr) continue;
     map.set_point_position(a.point_ids[k], a.problem.points[k]);
-    // The descriptor depends on the observations only.
-    if (observations_changed.count(a.point_ids[k]) != 0)
-      map.update_point_appearance(a.point_ids[k]);
-    else
-      map.update_point_geometry(a.point_ids[k]);
+    map.update_point_geometry(a.point_ids[k]);  // the descriptor does not depend on it
   }
   for (std::size_t k = 0; k < a.line_ids.size(); ++k)
     if (const auto ends = onto_line(a.problem.lines[k], a.lines_before[k]))
