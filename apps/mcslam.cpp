@@ -509,6 +509,18 @@ int main(int argc, char** argv) {
   detect_cmd->add_option("--output,-o", detect.output_dir, "Folder for the results")->required();
   detect_cmd->add_option("--confidence", detect.options.confidence,
                          "Minimum detection score in (0, 1) (default 0.35)");
+  detect_cmd
+      ->add_option_function<std::string>(
+          "--input-size",
+          [&detect](const std::string& text) {
+            int w = 0, h = 0;
+            char x = 0, rest = 0;
+            if (std::sscanf(text.c_str(), "%d%c%d%c", &w, &x, &h, &rest) != 3 || x != 'x')
+              throw CLI::ValidationError("--input-size", "expected WxH, e.g. 256x192");
+            detect.options.input_size = cv::Size(w, h);
+          },
+          "Network input WxH, multiples of 32 (default: the model's own)")
+      ->type_name("WxH");
   detect_cmd->add_option("--max-frames", detect.max_frames, "Process at most N images")
       ->check(CLI::NonNegativeNumber);
   detect_cmd->add_flag("--quiet,-q", quiet, "No progress bar and no summary");

@@ -58,6 +58,8 @@ std::unique_ptr<slam::DetectionSource> make_detection_source(const Settings::Dat
     perception::DetectorOptions detector;
     if (s.confidence) detector.confidence = *s.confidence;
     if (auto e = detector.check()) throw InputError("confidence: " + *e);
+    detector.input_size =
+        perception::input_size_for(cv::Size(camera.width, camera.height), options.detector_scale);
     // A frame that waits for its own boxes (sequential mode) must be given to the detector.
     const bool waits = options.sequential;
     return std::make_unique<slam::ModelDetectionSource>(perception::Detector(s.model, detector),

@@ -85,6 +85,8 @@ std::unique_ptr<slam::DetectionSource> make_detection_source(const RunRequest& r
     perception::DetectorOptions options;
     if (request.confidence) options.confidence = *request.confidence;
     if (auto e = options.check()) throw InputError("--confidence: " + *e);
+    options.input_size =
+        perception::input_size_for(cv::Size(camera.width, camera.height), system.detector_scale);
     // A frame that waits for its own boxes must be given to the detector.
     const bool waits = request.wait_for_detections || system.sequential;
     return std::make_unique<slam::ModelDetectionSource>(

@@ -12,6 +12,7 @@
 #include <opencv2/dnn/all_layers.hpp>
 #include <opencv2/imgproc.hpp>
 #include <sstream>
+#include <variant>
 
 #include "mcslam/core/error.hpp"
 
@@ -286,10 +287,87 @@ std::string opencv_message(const cv::Exception& e) {
   return msg;
 }
 
+// The anchors of a three-level head (strides 8, 16, 32: YOLOX, YOLOv8, YOLO11) for an input.
 int yolox_anchor_count(cv::Size input) {
   int n = 0;
   for (int s : kYoloxStrides) n += (input.width / s) * (input.height / s);
   return n;
+}
+
+// --- running a YOLOv8 graph at another input size ---------------------------------------------
+//
+// The convolutions take any input size, but the stock Ultralytics export computes its anchor
+// grid at export time: the DFL's reshapes hold the anchor count N, two constants hold the
+// anchor centres (1x2xN: x + 0.5 and y + 0.5 in grid cells, level after level) and the stride
+// multiplication holds the stride of each anchor (1xN). For another input these are exactly the
+// same constructions with another N, so they are rebuilt here; a constant of N values that is
+// not what the export computes (checked value by value) stops the change with an error.
+
+// The head constant of `rows` rows (1: strides, 2: anchor centres) for an input, as the export
+// lays it out.
+std::vector<float> head_constant(int rows, cv::Size input) {
+  std::vector<float> x, y, stride;
+  for (int s : kYoloxStrides) {
+    for (int gy = 0; gy < input.height / s; ++gy) {
+      for (int gx = 0; gx < input.width / s; ++gx) {
+        x.push_back(static_cast<float>(gx) + 0.5f);
+        y.push_back(static_cast<float>(gy) + 0.5f);
+        stride.push_back(static_cast<float>(s));
+      }
+    }
+  }
+  if (rows == 1) return stride;
+  x.insert(x.end(), y.begin(), y.end());
+  return x;
+}
+
+// Rebuilds one layer constant of the last dimension `from`'s anchor count for `to`; false when
+// it is not an anchor constant of the export.
+bool regrid_constant(cv::Mat& blob, cv::Size from, cv::Size to) {
+  const int n_old = yolox_anchor_count(from);
+  if (blob.type() != CV_32F || !blob.isContinuous() || blob.total() % n_old != 0) return false;
+  const int rows = static_cast<int>(blob.total() / n_old);
+  if (rows != 1 && rows != 2) return false;
+  const std::vector<float> expected = head_constant(rows, from);
+  const float* values = blob.ptr<float>();
+  for (std::size_t i = 0; i < expected.size(); ++i)
+    if (std::abs(values[i] - expected[i]) > 1e-4f) return false;
+  std::vector<int> dims(blob.size.p, blob.size.p + blob.dims);
+  dims.back() = yolox_anchor_count(to);
+  const std::vector<float> rebuilt = head_constant(rows, to);
+  cv::Mat out(blob.dims, dims.data(), CV_32F);
+  std::copy(rebuilt.begin(), rebuilt.end(), out.ptr<float>());
+  blob = out;
+  return true;
+}
+
+// Re-grids every layer that holds the anchor count of `from`. Returns the number of layers
+// changed, or the problem.
+std::variant<int, std::string> regrid_head(cv::dnn::Net& net, cv::Size from, cv::Size to) {
+  const int n_old = yolox_anchor_count(from);
+  const int n_new = yolox_anchor_count(to);
+  int changed = 0;
+  for (const cv::String& name : net.getLayerNames()) {
+    cv::Ptr<cv::dnn::Layer> layer = net.getLayer(net.getLayerId(name));
+    if (!layer) continue;
+    bool touched = false;
+    if (cv::Ptr<cv::dnn::ReshapeLayer> reshape = layer.dynamicCast<cv::dnn::ReshapeLayer>()) {
+      for (int& d : reshape->newShapeDesc) {
+        if (d != n_old) continue;
+        d = n_new;
+        touched = true;
+      }
+    }
+    for (cv::Mat& blob : layer->blobs) {
+      if (blob.dims < 1 || blob.size[blob.dims - 1] != n_old) continue;
+      if (!regrid_constant(blob, from, to))
+        return "layer " + name + " holds a constant of " + std::to_string(n_old) +
+               " values that is not the export's anchor grid";
+      touched = true;
+    }
+    changed += touched ? 1 : 0;
+  }
+  return changed;
 }
 
 // --- decoding -----------------------------------------------------------------------------------
@@ -406,7 +484,22 @@ std::optional<std::string> DetectorOptions::check() const {
     return "detector.confidence must be in (0, 1), got " + show(confidence);
   if (!(nms_iou > 0.0 && nms_iou <= 1.0))
     return "detector.nms_iou must be in (0, 1], got " + show(nms_iou);
+  const bool own_size = input_size.width == 0 && input_size.height == 0;
+  const auto stride_multiple = [](int v) { return v >= 32 && v <= 4096 && v % 32 == 0; };
+  if (!own_size && !(stride_multiple(input_size.width) && stride_multiple(input_size.height)))
+    return "the detector's input size must be 0x0 (the model's own) or multiples of 32 from 32 "
+           "to 4096, got " +
+           std::to_string(input_size.width) + "x" + std::to_string(input_size.height);
   return std::nullopt;
+}
+
+cv::Size input_size_for(cv::Size image, double scale) {
+  if (!(scale > 0.0) || image.width <= 0 || image.height <= 0) return {};
+  const auto side = [scale](int pixels) {
+    const int n = static_cast<int>(std::ceil(pixels * scale / 32.0 - 1e-9));
+    return std::clamp(n, 1, 4096 / 32) * 32;
+  };
+  return {side(image.width), side(image.height)};
 }
 
 const char* to_string(DetectorFormat format) {
@@ -581,6 +674,7 @@ struct Detector::Impl {
   cv::dnn::Net net;
   DetectorFormat format = DetectorFormat::kYoloV8;
   cv::Size input_size;
+  cv::Size graph_input_size;
   std::vector<std::string> names;
   std::vector<cv::String> output_names;
   int adjusted = 0;
@@ -684,6 +778,20 @@ Detector::Detector(const std::string& model_path, const DetectorOptions& options
                                 "the input size is not fixed in the graph (a 1x3xHxW input with "
                                 "numbers for H and W is needed; export with a fixed image size)"));
 
+  m.graph_input_size = m.input_size;
+  if (options.input_size.area() > 0 && options.input_size != m.input_size) {
+    std::variant<int, std::string> regridded;
+    try {
+      regridded = regrid_head(m.net, m.input_size, options.input_size);
+    } catch (const cv::Exception& e) {
+      regridded = opencv_message(e);
+    }
+    if (const auto* problem = std::get_if<std::string>(&regridded))
+      throw InputError(file_error(
+          model_path, "cannot run at " + std::to_string(options.input_size.width) + "x" +
+                          std::to_string(options.input_size.height) + " (" + *problem + ")"));
+    m.input_size = options.input_size;
+  }
   const cv::dnn::MatShape input_shape = {1, 3, m.input_size.height, m.input_size.width};
   try {
     m.adjusted = fix_trailing_broadcast_scales(m.net, input_shape);
@@ -701,8 +809,12 @@ Detector::Detector(const std::string& model_path, const DetectorOptions& options
     m.forward(cv::Mat(4, dims, CV_32F, cv::Scalar(kPadGrey / 255.0)));
     output = m.outputs.at(0);
   } catch (const cv::Exception& e) {
-    throw InputError(file_error(
-        model_path, "OpenCV " CV_VERSION " cannot run this model (" + opencv_message(e) + ")"));
+    throw InputError(file_error(model_path, "OpenCV " CV_VERSION " cannot run this model" +
+                                                (m.input_size != m.graph_input_size
+                                                     ? " at " + std::to_string(m.input_size.width) +
+                                                           "x" + std::to_string(m.input_size.height)
+                                                     : std::string()) +
+                                                " (" + opencv_message(e) + ")"));
   }
 
   const int classes_v8 = output.dims == 3 ? output.size[1] - 4 : 0;
@@ -757,6 +869,7 @@ cv::Size Detector::input_size() const { return impl_->input_size; }
 const std::vector<std::string>& Detector::class_names() const { return impl_->names; }
 const std::string& Detector::path() const { return impl_->path; }
 int Detector::adjusted_layers() const { return impl_->adjusted; }
+cv::Size Detector::graph_input_size() const { return impl_->graph_input_size; }
 
 cv::Mat Detector::make_blob(const cv::Mat& bgr, Letterbox& letterbox) const {
   if (bgr.empty() || bgr.type() != CV_8UC3) return {};

@@ -197,6 +197,7 @@ std::vector<Field> mcslam_fields(PinholeCamera& c, SystemOptions& o) {
       {"system.detector_niceness", &o.detector_niceness},
       {"system.opencv_threads", &o.opencv_threads},
       {"system.cold_start_keyframes", &o.cold_start_keyframes},
+      {"system.detector_scale", &o.detector_scale},
   };
 }
 

@@ -71,7 +71,11 @@ std::string ModelDetectionSource::describe() const {
   std::ostringstream s;
   s << "model " << std::filesystem::path(detector_.path()).filename().string() << " ("
     << perception::to_string(detector_.format()) << ", " << detector_.input_size().width << "x"
-    << detector_.input_size().height << ")";
+    << detector_.input_size().height;
+  if (detector_.input_size() != detector_.graph_input_size())
+    s << ", exported for " << detector_.graph_input_size().width << "x"
+      << detector_.graph_input_size().height;
+  s << ")";
   return s.str();
 }
 

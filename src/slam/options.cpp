@@ -82,6 +82,8 @@ std::optional<std::string> SystemOptions::check() const {
     return "system.opencv_threads must be in [0, 256] (0: OpenCV's default)";
   if (cold_start_keyframes < 0 || cold_start_keyframes > 1000)
     return "system.cold_start_keyframes must be in [0, 1000]";
+  if (!(detector_scale == 0.0 || (detector_scale >= 0.05 && detector_scale <= 4.0)))
+    return "system.detector_scale must be 0 (the model's own input) or in [0.05, 4]";
   if (auto e = orb.check()) return e;
   if (auto e = lines.check()) return e;
   if (auto e = planes.check()) return e;

@@ -88,6 +88,14 @@ TEST(DetectCli, OneImage) {
   }
   EXPECT_TRUE(keyboard);
 
+  // At another network input: the summary names it, the keyboard is still found.
+  const CliResult small =
+      detect_cli(dir, quote(image) + " --model " + quote(kYoloV8) + " --output " +
+                          quote((dir / "small").string()) + " --input-size 224x192");
+  ASSERT_EQ(small.exit_code, 0) << small;
+  EXPECT_NE(small.out.find("yolov8 224x192"), std::string::npos) << small;
+  EXPECT_NE(small.out.find("keyboard"), std::string::npos) << small;
+
   const cv::Mat annotated = cv::imread((out / "annotated" / (kFrames[1] + ".jpg")).string());
   ASSERT_FALSE(annotated.empty());
   EXPECT_EQ(annotated.cols, 640);
@@ -151,6 +159,14 @@ TEST(DetectCli, BadModelAndOptions) {
   expect_input_error(detect_cli(dir, quote(image) + " --model " + quote(model) + " -o " + out +
                                          " --confidence 1.5"),
                      {"detector.confidence"});
+  expect_input_error(detect_cli(dir, quote(image) + " --model " + quote(model) + " -o " + out +
+                                         " --input-size 230x192"),
+                     {"multiples of 32", "230x192"});
+  const CliResult not_a_size = detect_cli(
+      dir, quote(image) + " --model " + quote(model) + " -o " + out + " --input-size 224");
+  EXPECT_NE(not_a_size.exit_code, 0) << not_a_size;
+  EXPECT_FALSE(not_a_size.crashed) << not_a_size;
+  EXPECT_NE(not_a_size.err.find("WxH"), std::string::npos) << not_a_size;
   // A required option missing is a usage error (CLI11), not an input error.
   const CliResult usage = detect_cli(dir, quote(image) + " -o " + out);
   EXPECT_NE(usage.exit_code, 0) << usage;

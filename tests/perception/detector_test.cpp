@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <limits>
 #include <opencv2/dnn.hpp>
+#include <opencv2/dnn/all_layers.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <random>
 #include <set>
@@ -95,6 +96,17 @@ TEST(DetectorOptions, Check) {
   EXPECT_EQ(problem(std::nan(""), 0.5).rfind("detector.confidence", 0), 0u);
   EXPECT_EQ(problem(0.5, 0.0).rfind("detector.nms_iou", 0), 0u);
   EXPECT_EQ(problem(0.5, 1.5).rfind("detector.nms_iou", 0), 0u);
+  const auto size_problem = [](cv::Size size) {
+    DetectorOptions o;
+    o.input_size = size;
+    return o.check().value_or("");
+  };
+  EXPECT_EQ(size_problem({224, 192}), "");
+  EXPECT_EQ(size_problem({0, 0}), "");
+  EXPECT_NE(size_problem({224, 0}), "");
+  EXPECT_NE(size_problem({230, 192}), "");
+  EXPECT_NE(size_problem({-32, 192}), "");
+  EXPECT_NE(size_problem({8192, 192}), "");
 }
 
 TEST(Letterbox, YoloV8CentresYoloxTopLeft) {
@@ -495,23 +507,28 @@ TEST(Detector, YoloxDetectsTheDesk) { expect_desk(kYoloX); }
 // OpenCV computes without help) decoded in plain C++ as Ultralytics' Detect head does (DFL
 // softmax expectation, anchor points at cell centres of the 8/16/32 grids, dist2bbox, times the
 // stride; sigmoid of the logits).
-TEST(Detector, YoloV8StrideFixMatchesIndependentDecode) {
-  REQUIRE_FILE(kYoloV8);
-  REQUIRE_FILE(kDeskFrame);
-  const cv::Mat image = cv::imread(kDeskFrame, cv::IMREAD_COLOR);
-  ASSERT_FALSE(image.empty());
-  const Detector detector(kYoloV8);
-  Letterbox lb;
-  const cv::Mat blob = detector.make_blob(image, lb);
-  const cv::Mat fixed = detector.forward_blob(blob);
-  ASSERT_EQ(fixed.dims, 3);
-  const int rows = fixed.size[1], n = fixed.size[2], classes = rows - 4;
-
-  // The head's inputs: the last Concat layers giving 1x64xN and 1xCxN.
-  cv::dnn::Net net = cv::dnn::readNetFromONNX(kYoloV8);
+// The head's raw tensors (the box distributions 1x64xN and the class logits 1xCxN, the last
+// Concat layers) for a blob, from a plain OpenCV net. At an input other than the export's the
+// plain net's shape inference stops at the head's constants, so they are resized here to zeros:
+// the raw tensors come before them and do not depend on their values.
+std::vector<cv::Mat> raw_head(const std::string& model, const cv::Mat& blob, int n, int classes) {
+  cv::dnn::Net net = cv::dnn::readNetFromONNX(model);
+  const int n_export = 2100;  // yolov8n_320
+  for (const cv::String& name : net.getLayerNames()) {
+    cv::Ptr<cv::dnn::Layer> layer = net.getLayer(net.getLayerId(name));
+    if (auto reshape = layer.dynamicCast<cv::dnn::ReshapeLayer>())
+      for (int& d : reshape->newShapeDesc)
+        if (d == n_export) d = n;
+    for (cv::Mat& b : layer->blobs) {
+      if (b.size[b.dims - 1] != n_export) continue;
+      std::vector<int> dims(b.size.p, b.size.p + b.dims);
+      dims.back() = n;
+      b = cv::Mat(b.dims, dims.data(), CV_32F, cv::Scalar(0.0));
+    }
+  }
   std::vector<int> ids;
   std::vector<std::vector<cv::dnn::MatShape>> ins, outs;
-  net.getLayersShapes(cv::dnn::MatShape{1, 3, 320, 320}, ids, ins, outs);
+  net.getLayersShapes(cv::dnn::MatShape{1, 3, blob.size[2], blob.size[3]}, ids, ins, outs);
   std::string box_layer, cls_layer;
   for (std::size_t i = 0; i < ids.size(); ++i) {
     const cv::Ptr<cv::dnn::Layer> layer = net.getLayer(ids[i]);
@@ -520,18 +537,42 @@ TEST(Detector, YoloV8StrideFixMatchesIndependentDecode) {
     if (s == cv::dnn::MatShape{1, 64, n}) box_layer = layer->name;
     if (s == cv::dnn::MatShape{1, classes, n}) cls_layer = layer->name;
   }
-  ASSERT_FALSE(box_layer.empty());
-  ASSERT_FALSE(cls_layer.empty());
+  if (box_layer.empty() || cls_layer.empty()) return {};
   net.setInput(blob);
   std::vector<cv::Mat> raw;
   net.forward(raw, std::vector<cv::String>{box_layer, cls_layer});
+  return raw;
+}
+
+// The detector's output against an independent decoding of the head's raw tensors in plain C++,
+// as Ultralytics' Detect head does it (DFL softmax expectation, anchor points at cell centres of
+// the 8/16/32 grids of `input`, dist2bbox, times the stride; sigmoid of the logits). Checks the
+// load-time fix of /model.22/Mul_2 and, at another input size, the re-gridded head.
+void expect_independent_decode(cv::Size input) {
+  REQUIRE_FILE(kYoloV8);
+  REQUIRE_FILE(kDeskFrame);
+  const cv::Mat image = cv::imread(kDeskFrame, cv::IMREAD_COLOR);
+  ASSERT_FALSE(image.empty());
+  DetectorOptions options;
+  if (input != cv::Size(320, 320)) options.input_size = input;
+  const Detector detector(kYoloV8, options);
+  ASSERT_EQ(detector.input_size(), input);
+  EXPECT_EQ(detector.graph_input_size(), cv::Size(320, 320));
+  Letterbox lb;
+  const cv::Mat blob = detector.make_blob(image, lb);
+  const cv::Mat fixed = detector.forward_blob(blob);
+  ASSERT_EQ(fixed.dims, 3);
+  const int rows = fixed.size[1], n = fixed.size[2], classes = rows - 4;
+
+  const std::vector<cv::Mat> raw = raw_head(kYoloV8, blob, n, classes);
+  ASSERT_EQ(raw.size(), 2u);
   const cv::Mat dist(64, n, CV_32F, raw[0].data), logits(classes, n, CV_32F, raw[1].data);
 
   cv::Mat expected(rows, n, CV_32F);
   int anchor = 0;
   for (int stride : {8, 16, 32}) {
-    for (int gy = 0; gy < 320 / stride; ++gy) {
-      for (int gx = 0; gx < 320 / stride; ++gx, ++anchor) {
+    for (int gy = 0; gy < input.height / stride; ++gy) {
+      for (int gx = 0; gx < input.width / stride; ++gx, ++anchor) {
         ASSERT_LT(anchor, n);
         double side[4];
         for (int k = 0; k < 4; ++k) {
@@ -568,9 +609,11 @@ TEST(Detector, YoloV8StrideFixMatchesIndependentDecode) {
 
 #if CV_VERSION_MAJOR == 4 && CV_VERSION_MINOR < 7
   // The reason for the fix: without it, OpenCV 4.6 cannot run the stock graph.
-  cv::dnn::Net plain = cv::dnn::readNetFromONNX(kYoloV8);
-  plain.setInput(blob);
-  EXPECT_THROW(plain.forward(), cv::Exception);
+  if (input == cv::Size(320, 320)) {
+    cv::dnn::Net plain = cv::dnn::readNetFromONNX(kYoloV8);
+    plain.setInput(blob);
+    EXPECT_THROW(plain.forward(), cv::Exception);
+  }
 #endif
 
   // And the detections are those of the independent tensor.
@@ -583,6 +626,65 @@ TEST(Detector, YoloV8StrideFixMatchesIndependentDecode) {
     EXPECT_NEAR(a[i].score, b[i].score, 1e-5);
     expect_box(a[i].box, b[i].box, 1e-2);
   }
+}
+
+TEST(Detector, YoloV8StrideFixMatchesIndependentDecode) { expect_independent_decode({320, 320}); }
+
+// At another input size the head's anchor grid and strides are rebuilt: the outputs are the
+// independent decoding's on the new grids (rectangular, and smaller than the export's).
+TEST(Detector, YoloV8AtAnotherInputSizeMatchesIndependentDecode) {
+  expect_independent_decode({224, 192});
+  expect_independent_decode({352, 256});
+}
+
+// The desk seen at the input mcslam runs by default (the 640x480 image scaled by 0.35): the
+// same keyboard, where the export's own size finds it.
+TEST(Detector, YoloV8AtTheDefaultScaleFindsTheDesk) {
+  REQUIRE_FILE(kYoloV8);
+  REQUIRE_FILE(kDeskFrame);
+  const cv::Mat image = cv::imread(kDeskFrame, cv::IMREAD_COLOR);
+  DetectorOptions options;
+  options.input_size = input_size_for(image.size(), 0.35);
+  ASSERT_EQ(options.input_size, cv::Size(224, 192));
+  const auto small = Detector(kYoloV8, options).detect(image);
+  const auto full = Detector(kYoloV8).detect(image);
+  const Detection* a = find_class(small, "keyboard");
+  const Detection* b = find_class(full, "keyboard");
+  ASSERT_NE(a, nullptr);
+  ASSERT_NE(b, nullptr);
+  EXPECT_GT(iou(a->box, b->box), 0.85);
+}
+
+TEST(Detector, YoloxRunsAtAnotherInputSize) {
+  REQUIRE_FILE(kYoloX);
+  DetectorOptions options;
+  options.input_size = {320, 256};
+  const Detector d(kYoloX, options);
+  EXPECT_EQ(d.input_size(), cv::Size(320, 256));
+  EXPECT_EQ(d.graph_input_size(), cv::Size(416, 416));
+  REQUIRE_FILE(kDeskFrame);
+  const auto detections = d.detect(cv::imread(kDeskFrame, cv::IMREAD_COLOR));
+  EXPECT_NE(find_class(detections, "keyboard"), nullptr);
+}
+
+// A graph whose fixed shapes do not follow the anchor grid cannot run at another size: one
+// error naming the file and the size asked for.
+TEST(Detector, AGraphThatCannotChangeSizeSaysSo) {
+  TempDir dir;
+  std::vector<float> strides(8400, 8.0f);
+  const std::string path = dir.write("head.onnx", stride_head_onnx(120, 140, 6, strides));
+  DetectorOptions options;
+  options.input_size = {64, 64};
+  expect_input_error([&] { Detector d(path, options); }, {path, "64x64"});
+}
+
+TEST(InputSizeFor, ScalesAndRoundsUpToTheCoarsestStride) {
+  EXPECT_EQ(input_size_for({640, 480}, 0.35), cv::Size(224, 192));
+  EXPECT_EQ(input_size_for({640, 480}, 0.4), cv::Size(256, 192));
+  EXPECT_EQ(input_size_for({640, 480}, 0.5), cv::Size(320, 256));
+  EXPECT_EQ(input_size_for({848, 480}, 0.35), cv::Size(320, 192));
+  EXPECT_EQ(input_size_for({640, 480}, 0.0), cv::Size());
+  EXPECT_EQ(input_size_for({10, 10}, 0.1), cv::Size(32, 32));
 }
 
 TEST(Detector, DetectNeverThrowsOnOddImages) {

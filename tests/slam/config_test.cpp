@@ -90,6 +90,20 @@ TEST(Config, UnknownKeysAndBadValuesAreErrorsNamingTheFile) {
   good.height = 480;
   EXPECT_NE(message_of([&] { apply_config(bad_option, good, options); }).find("max_depth"),
             std::string::npos);
+
+  // The detector's scale: 0 (the model's own input) or a factor a network can run at.
+  for (const char* value : {"-0.35", "0.01", "5"}) {
+    SystemOptions fresh;
+    io::ConfigFile scale = io::ConfigFile::from_string(
+        std::string("system: {detector_scale: ") + value + "}\n", "scale.yaml");
+    const std::string m = message_of([&] { apply_config(scale, good, fresh); });
+    EXPECT_NE(m.find("system.detector_scale"), std::string::npos) << value << ": " << m;
+  }
+  SystemOptions own;
+  io::ConfigFile own_size =
+      io::ConfigFile::from_string("system: {detector_scale: 0}\n", "own.yaml");
+  apply_config(own_size, good, own);
+  EXPECT_EQ(own.detector_scale, 0.0);
 }
 
 TEST(Config, CameraFromFolderNameCameraYamlAndSettings) {

@@ -10,7 +10,8 @@
 //    this at load time without editing the file (see detector.cpp).
 //  - YOLOX: input 1x3xHxW BGR in [0, 255], padded at the bottom/right; output 1xNx(5+C) raw grid
 //    offsets (decoded with strides 8, 16, 32), objectness, C class scores.
-// The input size is the model's own (read from the graph). Boxes are returned in the pixels of
+// The input size is the model's own (read from the graph) unless DetectorOptions::input_size asks
+// for another one. Boxes are returned in the pixels of
 // the image given to detect(), after a confidence threshold and class-wise non-maximum
 // suppression.
 
@@ -30,10 +31,21 @@ struct DetectorOptions {
   double confidence = 0.35;
   /// Class-wise non-maximum suppression IoU threshold.
   double nms_iou = 0.45;
+  /// The network input (width x height) the model runs at; 0x0: the graph's own. Both sides
+  /// multiples of 32 (the coarsest head's stride). The work of a pass is proportional to the
+  /// area: a 640x480 image letterboxed into 320x320 leaves 20 % of it padding, which 320x256
+  /// does not compute, and 256x192 is half the work of 320x256 at 0.4 of the image's scale
+  /// (docs/crowd.md measures what it costs in recall). A YOLOv8 graph whose head holds the
+  /// anchor grid as constants (the stock export) is re-gridded at load time.
+  cv::Size input_size;
   // No thread count: OpenCV 4.6's DNN runs a forward pass on OpenCV's process-wide pool
   // (cv::setNumThreads), which the application sets (mcslam: system.opencv_threads).
   std::optional<std::string> check() const;
 };
+
+/// The input size for an image scaled by `scale`, each side rounded up to a multiple of 32
+/// (at least 32); 0x0 (the model's own) when `scale` is 0.
+cv::Size input_size_for(cv::Size image, double scale);
 
 enum class DetectorFormat { kYoloV8, kYoloX };
 const char* to_string(DetectorFormat format);
@@ -74,6 +86,9 @@ class Detector {
   /// How many layers were adjusted at load time so that OpenCV 4.6 runs the graph (1 for a stock
   /// Ultralytics export: its /model.NN/Mul_2 stride multiplication; 0 for YOLOX).
   int adjusted_layers() const;
+  /// The input size the graph was exported for (input_size() differs when
+  /// DetectorOptions::input_size asked for another one).
+  cv::Size graph_input_size() const;
   /// The network input for an image (a new 1x3xHxW CV_32F blob) and its letterbox. Exposed for
   /// tests; detect() does the same into reused buffers.
   cv::Mat make_blob(const cv::Mat& bgr, Letterbox& letterbox) const;

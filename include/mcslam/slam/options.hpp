@@ -215,6 +215,14 @@ struct SystemOptions {
   /// the map holds this many keyframes: the first map is built from fresh boxes, so that people
   /// in view from the first frame are not mapped as static. 0: never.
   int cold_start_keyframes = 5;
+  /// A detector model runs on the image scaled by this factor, its sides rounded up to multiples
+  /// of 32 (perception::input_size_for: 640x480 at 0.35 is 224x192); 0: at the input size the
+  /// model was exported for. The work of a forward pass grows with the input's area, and what
+  /// it must resolve is a person: at 0.35 a person 1.7 m tall 5 m away (fy 525) is still 62
+  /// pixels tall, twice the coarsest head's stride. Measured on Bonn crowd part 1 against
+  /// yolov8n at 640x640: people found 0.975 at 224x192 (0.990 at 320x320), a pass 0.43 of the
+  /// 320x320 one on one thread (docs/crowd.md).
+  double detector_scale = 0.35;
 
   std::optional<std::string> check() const;
 };
