@@ -98,6 +98,8 @@ std::vector<Field> mcslam_fields(PinholeCamera& c, SystemOptions& o) {
       {"tracker.min_initial_points", &t.min_initial_points},
       {"tracker.min_initial_lines", &t.min_initial_lines},
       {"tracker.plane_inlier_weight", &t.plane_inlier_weight},
+      {"tracker.established_age", &t.established_age},
+      {"tracker.established_gate", &t.established_gate},
       {"tracker.line_sigma", &t.line_sigma},
       {"tracker.line_max_descriptor_distance", &t.line_max_descriptor_distance},
       {"tracker.line_max_angle_deg", &t.line_max_angle_deg},

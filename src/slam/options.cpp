@@ -17,6 +17,10 @@ std::optional<std::string> TrackerOptions::check() const {
   if (!(local_map_search_radius > 0.0)) return "tracker.local_map_search_radius must be positive";
   if (!(local_map_ratio > 0.0 && local_map_ratio <= 1.0))
     return "tracker.local_map_ratio must be in (0, 1]";
+  if (!(established_age >= 0.0 && established_age <= 3600.0))
+    return "tracker.established_age must be in [0, 3600] seconds (0: off)";
+  if (!(established_gate >= 1.0 && established_gate <= 1000.0))
+    return "tracker.established_gate must be in [1, 1000]";
   if (min_motion_matches < 3 || min_pose_inliers < 3 || min_local_map_inliers < 3 ||
       min_relocalisation_inliers < 3)
     return "tracker minimum match and inlier counts must be at least 3";

@@ -65,6 +65,78 @@ class RotationHistogram {
   std::array<std::vector<int>, kRotationBins> bins_;
 };
 
+// The pose from the established landmarks alone, and which of the other observations it
+// explains (TrackerOptions::established_age).
+struct EstablishedGate {
+  SE3 T_c_w;
+  std::vector<bool> keep_point;  // per problem.points
+  std::vector<bool> keep_line;   // per problem.lines
+};
+
+// Nullopt when the established landmarks are not enough to stand alone (or all are established).
+std::optional<EstablishedGate> gate_by_established(const PinholeCamera& camera,
+                                                   const optim::PoseProblem& problem,
+                                                   const std::vector<bool>& established_point,
+                                                   const std::vector<bool>& established_line,
+                                                   const SE3& T_c_w,
+                                                   const TrackerOptions& options) {
+  optim::PoseProblem anchor;
+  for (std::size_t i = 0; i < problem.points.size(); ++i)
+    if (established_point[i]) anchor.points.push_back(problem.points[i]);
+  for (std::size_t i = 0; i < problem.lines.size(); ++i)
+    if (established_line[i]) anchor.lines.push_back(problem.lines[i]);
+  anchor.planes = problem.planes;
+  const std::size_t young =
+      problem.points.size() + problem.lines.size() - anchor.points.size() - anchor.lines.size();
+  // Enough when the established landmarks alone would pass the frame's own success test.
+  const auto enough = [&](std::size_t points_and_lines, std::size_t planes) {
+    const auto n = static_cast<int>(points_and_lines);
+    return n >= options.min_pose_inliers &&
+           n + options.plane_inlier_weight * static_cast<int>(planes) >=
+               options.min_local_map_inliers;
+  };
+  if (young == 0 || !enough(anchor.points.size() + anchor.lines.size(), anchor.planes.size()))
+    return std::nullopt;
+  // Two robust rounds: the pose only has to classify the rest, and the final solve refines it.
+  optim::PoseOptimizerOptions anchor_options = options.pose;
+  anchor_options.rounds = std::min(anchor_options.rounds, 2);
+  anchor_options.robust_rounds = std::min(anchor_options.robust_rounds, 2);
+  const auto result = optim::optimize_pose(camera, T_c_w, anchor, anchor_options);
+  if (result.failed ||
+      !enough(static_cast<std::size_t>(result.num_inliers + result.num_line_inliers),
+              static_cast<std::size_t>(result.num_plane_inliers)))
+    return std::nullopt;
+  EstablishedGate gate{result.T_c_w, {}, {}};
+  const double g = options.established_gate;
+  gate.keep_point.resize(problem.points.size());
+  for (std::size_t i = 0; i < problem.points.size(); ++i) {
+    const auto& obs = problem.points[i];
+    const double limit =
+        g * (obs.measurement.has_depth() ? options.pose.chi2_rgbd : options.pose.chi2_mono);
+    gate.keep_point[i] =
+        established_point[i] ||
+        optim::reprojection_chi2(camera, obs.measurement, gate.T_c_w * obs.p_w) <= limit;
+  }
+  gate.keep_line.resize(problem.lines.size());
+  for (std::size_t i = 0; i < problem.lines.size(); ++i) {
+    const auto& obs = problem.lines[i];
+    const double chi2 = optim::line_chi2(camera, obs.measurement, gate.T_c_w * obs.start_w,
+                                         gate.T_c_w * obs.end_w) *
+                        obs.measurement.information;
+    gate.keep_line[i] = established_line[i] || chi2 <= g * options.pose.chi2_line;
+  }
+  return gate;
+}
+
+// Keeps the entries of `items` whose flag is set.
+template <typename T>
+void keep_flagged(std::vector<T>& items, const std::vector<bool>& keep) {
+  std::size_t out = 0;
+  for (std::size_t i = 0; i < items.size(); ++i)
+    if (keep[i]) items[out++] = std::move(items[i]);
+  items.resize(out);
+}
+
 }  // namespace
 
 Tracker::Associations::Associations(const Frame& frame)
@@ -608,9 +680,28 @@ int Tracker::optimize(const Frame& frame, Associations& assoc, SE3& T_c_w) {
     plane_index.push_back(i);
   }
   if (problem.points.size() + problem.lines.size() + 3 * problem.planes.size() < 3) return 0;
+  // Established landmarks first: what their pose does not explain stays out (an outlier below).
+  std::vector<std::size_t> gated_points, gated_lines;
+  SE3 start = T_c_w;
+  if (options_.established_age > 0.0) {
+    const auto established = established_flags(frame.timestamp, assoc, point_index, line_index);
+    const auto gate = gate_by_established(camera_, problem, established.first, established.second,
+                                          T_c_w, options_);
+    if (gate) {
+      start = gate->T_c_w;
+      for (std::size_t k = 0; k < point_index.size(); ++k)
+        if (!gate->keep_point[k]) gated_points.push_back(point_index[k]);
+      for (std::size_t k = 0; k < line_index.size(); ++k)
+        if (!gate->keep_line[k]) gated_lines.push_back(line_index[k]);
+      keep_flagged(problem.points, gate->keep_point);
+      keep_flagged(point_index, gate->keep_point);
+      keep_flagged(problem.lines, gate->keep_line);
+      keep_flagged(line_index, gate->keep_line);
+    }
+  }
   problem.constrained_points = objects_.constrained_points();
   problem.constrained_lines = objects_.constrained_lines();
-  const auto result = optim::optimize_pose(camera_, T_c_w, problem, options_.pose);
+  const auto result = optim::optimize_pose(camera_, start, problem, options_.pose);
   if (result.failed) {
     // No usable solution: the pose is not an estimate, and nothing is an inlier of it.
     ++solver_failures_;
@@ -632,7 +723,32 @@ int Tracker::optimize(const Frame& frame, Associations& assoc, SE3& T_c_w) {
     assoc.lines[line_index[k]].outlier = !result.line_inlier[k];
   for (std::size_t k = 0; k < plane_index.size(); ++k)
     assoc.planes[plane_index[k]].outlier = !result.plane_inlier[k];
+  for (std::size_t i : gated_points) assoc.points[i].outlier = true;
+  for (std::size_t i : gated_lines) assoc.lines[i].outlier = true;
   return weighted_inliers(assoc);
+}
+
+std::pair<std::vector<bool>, std::vector<bool>> Tracker::established_flags(
+    double timestamp, const Associations& assoc, const std::vector<std::size_t>& point_index,
+    const std::vector<std::size_t>& line_index) const {
+  // A landmark whose first keyframe is gone (culled as redundant, which takes its points being
+  // seen by three other keyframes) counts as established.
+  const auto old_enough = [&](map::KeyFrameId first) {
+    const map::KeyFrame* kf = map_.keyframe(first);
+    return kf == nullptr || timestamp - kf->timestamp >= options_.established_age;
+  };
+  std::pair<std::vector<bool>, std::vector<bool>> flags;
+  for (std::size_t i : point_index) {
+    const map::PointId id = assoc.points[i].landmark;
+    const map::MapPoint* mp = id == map::kNoId ? nullptr : map_.point(id);
+    flags.first.push_back(mp != nullptr && old_enough(mp->first_keyframe));
+  }
+  for (std::size_t i : line_index) {
+    const map::LineId id = assoc.lines[i].landmark;
+    const map::MapLine* ml = id == map::kNoId ? nullptr : map_.line(id);
+    flags.second.push_back(ml != nullptr && old_enough(ml->first_keyframe));
+  }
+  return flags;
 }
 
 void Tracker::update_local_map(const Associations& assoc, const SE3& T_c_w) {

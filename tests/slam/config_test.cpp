@@ -99,6 +99,13 @@ TEST(Config, UnknownKeysAndBadValuesAreErrorsNamingTheFile) {
     const std::string m = message_of([&] { apply_config(scale, good, fresh); });
     EXPECT_NE(m.find("system.detector_scale"), std::string::npos) << value << ": " << m;
   }
+  for (const char* text :
+       {"tracker: {established_age: -1}\n", "tracker: {established_gate: 0.5}\n"}) {
+    SystemOptions fresh;
+    io::ConfigFile bad = io::ConfigFile::from_string(text, "est.yaml");
+    const std::string m = message_of([&] { apply_config(bad, good, fresh); });
+    EXPECT_NE(m.find("tracker.established_"), std::string::npos) << text << ": " << m;
+  }
   SystemOptions own;
   io::ConfigFile own_size =
       io::ConfigFile::from_string("system: {detector_scale: 0}\n", "own.yaml");

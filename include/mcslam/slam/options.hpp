@@ -68,6 +68,23 @@ struct TrackerOptions {
   /// image alone and cannot tell a blank colour image from a good one.
   int plane_inlier_weight = 10;
 
+  // --- established landmarks first ---
+  /// A landmark created at least this many seconds before the frame (its first keyframe's
+  /// time) is established: a walking person (>= 0.5 m/s) moves half a metre in a second, far
+  /// outside the local map's search window, so a point still matched a second after it was made
+  /// is not on a walker. Each pose is solved first from established points, lines and the
+  /// planes; every other observation (young landmarks, the last frame's points) then enters
+  /// only if that pose explains it within established_gate times its chi-square threshold, so
+  /// that a mover nobody boxed cannot drag the pose through the points it just gave the map.
+  /// This holds when the established landmarks' inliers alone pass the frame's success test
+  /// (min_pose_inliers points and lines, min_local_map_inliers with the planes weighted);
+  /// otherwise, as at the start of a map or in a new place, everything enters at once.
+  /// 0: off (every observation from the start, ORB-SLAM2's way).
+  double established_age = 1.0;
+  /// 4: a residual twice the chi-square threshold's standard deviations (5.6 sigma for a point
+  /// with depth). A person crossing the view 1 m away moves 15 px a frame (chi2 ~ 200).
+  double established_gate = 4.0;
+
   // --- lines ---
   /// Standard deviation (pixels) of an observed line's position, for residual (7).
   double line_sigma = 1.5;

@@ -202,8 +202,14 @@ class Tracker {
   int search_local_points(const Frame& frame, const SE3& T_c_w, double radius_factor,
                           std::vector<Match>& matches);
   int search_local_lines(const Frame& frame, const SE3& T_c_w, std::vector<LineMatch>& matches);
-  /// Pose optimisation on every active association; returns the weighted inlier count.
+  /// Pose optimisation on every active association, established landmarks first
+  /// (TrackerOptions::established_age); returns the weighted inlier count.
   int optimize(const Frame& frame, Associations& assoc, SE3& T_c_w);
+  /// Which of the optimised point and line associations (by index) are established landmarks.
+  /// Call under the map's read lock.
+  std::pair<std::vector<bool>, std::vector<bool>> established_flags(
+      double timestamp, const Associations& assoc, const std::vector<std::size_t>& point_index,
+      const std::vector<std::size_t>& line_index) const;
   /// Inliers as tracking success counts them: points + lines + plane_inlier_weight * planes.
   int weighted_inliers(const Associations& assoc) const;
   void update_local_map(const Associations& assoc, const SE3& T_c_w);
