@@ -21,6 +21,8 @@
 #                    frame 240 (people in view from the first frame)
 #   realtime, realtime-before-23, realtime-lsd - default / before-23 / LSD lines
 #                    (lines.detector: lsd) with --realtime
+#   no-established, cold-no-established - every observation in the pose at once, as ORB-SLAM2
+#                    (tracker.established_age: 0), instead of the established landmarks first
 #   model-size, cold-model-size, realtime-model-size - default / cold / realtime with the
 #                    detector at the model's own input size (system.detector_scale: 0; 320x320
 #                    for yolov8n_320) instead of the image scaled by 0.35 (224x192)
@@ -66,6 +68,7 @@ settings() {  # variant -> settings file (empty: none)
     moving-density|cold-moving-density) printf 'orb:\n  moving_density: 1\n' > "$file" ;;
     realtime-lsd) printf 'lines:\n  detector: lsd\n' > "$file" ;;
     opencv-pool) printf 'system:\n  opencv_threads: 0\n' > "$file" ;;
+    no-established|cold-no-established) printf 'tracker:\n  established_age: 0\n' > "$file" ;;
     model-size|cold-model-size|realtime-model-size)
       printf 'system:\n  detector_scale: 0\n' > "$file" ;;
     before-23|cold-before-23|realtime-before-23)
@@ -82,7 +85,7 @@ for v in "${names[@]}"; do  # check every name before the first run
     default|wait|no-propagation|no-background|no-movers|no-prior|no-detector|no-cold-start) ;;
     moving-density|opencv-pool|before-23|cold|cold-before-23|cold-moving-density) ;;
     realtime|realtime-before-23|realtime-lsd) ;;
-    model-size|cold-model-size|realtime-model-size) ;;
+    model-size|cold-model-size|realtime-model-size|no-established|cold-no-established) ;;
     *) echo "bench_crowd: unknown variant $v" >&2; exit 2 ;;
   esac
 done
@@ -94,7 +97,8 @@ for i in $(seq 1 "$runs"); do
     case "$v" in
       wait) args+=(--wait-detections) ;;
       no-detector) args=() ;;
-      cold|cold-before-23|cold-moving-density|cold-model-size) args+=(--first-frame 240) ;;
+      cold|cold-before-23|cold-moving-density|cold-model-size|cold-no-established)
+        args+=(--first-frame 240) ;;
       realtime|realtime-before-23|realtime-lsd|realtime-model-size) args+=(--realtime) ;;
     esac
     file=$(settings "$v")
