@@ -1,5 +1,5 @@
 // Tests of the bench's executors apart from the runs themselves: the plan files (bench.json and
-// plan.tsv) and their parser's errors, and Slurm driven through fake
+// plan.tsv) and their parser's errors, the request's checks, and Slurm driven through fake
 // sbatch, sacct and squeue scripts (submission, rejection, missing sbatch, task states). The
 // real cluster is tests/app/bench_slurm.sh.
 #include <gtest/gtest.h>
@@ -153,6 +153,38 @@ TEST(BenchPlanFile, MissingOrBrokenFilesAreNamed) {
   expect_input_error([&] { read_plan_files(dir.str()); }, {"\"runs\" must be at least 1"});
   dir.write("bench.json", settings_json(two_sequences()).dump());
   expect_input_error([&] { read_plan_files(dir.str()); }, {dir.file("plan.tsv"), "no such file"});
+}
+
+// --- the request --------------------------------------------------------------------------------
+
+TEST(BenchRequest, ChecksOptionsOfEachExecutor) {
+  BenchRequest r;
+  r.data_roots = {"/data"};
+  r.output_dir = "out";
+  EXPECT_FALSE(r.check());
+  r.jobs = 0;
+  EXPECT_TRUE(contains(r.check().value_or(""), "--jobs: must be at least 1"));
+  r.jobs = 2;
+  EXPECT_FALSE(r.check());
+  r.slurm.partition = "debug";
+  EXPECT_TRUE(contains(r.check().value_or(""), "only with --executor slurm"));
+
+  r.executor = BenchExecutor::kSlurm;
+  EXPECT_TRUE(contains(r.check().value_or(""), "--jobs: only with --executor local"));
+  r.jobs = 1;
+  EXPECT_TRUE(contains(r.check().value_or(""),
+                       "--output out: with --executor slurm the output "
+                       "folder must be an absolute path"));
+  EXPECT_TRUE(contains(r.check().value_or(""), "nodes share"));
+  r.output_dir = "/shared/bench";
+  EXPECT_FALSE(r.check());
+  r.slurm.time_limit_min = -1;
+  EXPECT_TRUE(contains(r.check().value_or(""), "--time-limit: must not be negative"));
+  r.slurm.time_limit_min = 30;
+  r.slurm.sbatch_args = {"mem=4G"};
+  EXPECT_TRUE(contains(r.check().value_or(""), "--sbatch-arg: 'mem=4G' is not one sbatch option"));
+  r.slurm.sbatch_args = {"--mem=4G"};
+  EXPECT_FALSE(r.check());
 }
 
 // --- Slurm --------------------------------------------------------------------------------------
