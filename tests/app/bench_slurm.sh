@@ -162,7 +162,7 @@ t0=$(now)
 "$exe" bench "$data" "${bench_args[@]}" --output "$out/local" > "$out/local.err" 2>&1 ||
   { cat "$out/local.err"; fail "local bench"; }
 t1=$(now)
-wait_jobs 240 "$hang_array" "$hang_collect"
+wait_jobs 300 "$hang_array" "$hang_collect"
 grep -q "no result: Slurm ended the task at its time limit; Slurm: TIMEOUT (job ${hang_array}_0" \
   "$out/timeout/results.md" || { cat "$out/timeout/results.md"; fail "no TIMEOUT in the tables"; }
 grep -q "log: slurm/task-${hang_array}_0.out" "$out/timeout/results.md" || fail "no log path"
@@ -175,10 +175,10 @@ t2=$(now)
   > "$out/slurm.out" || fail "submitting the bench"
 cat "$out/slurm.out"
 read -r array collect <<< "$(jobs_in "$out/slurm.out")"
-wait_jobs 300 "$array" "$collect"
+wait_jobs 480 "$array" "$collect"
 t3=$(now)
 read -r re_array re_collect <<< "$(jobs_in "$out/resubmit.out")"
-wait_jobs 120 "$re_array" "$re_collect"
+wait_jobs 240 "$re_array" "$re_collect"
 
 [ -f "$out/slurm/results.md" ] || { cat "$out"/slurm/slurm/*.out; fail "the collect job wrote no tables"; }
 grep -q "## Failed runs"$'\n\n'"None." "$out/slurm/results.md" ||
