@@ -123,8 +123,9 @@ TEST(BenchPlanFile, NonsenseLinesAreNamedWithFileAndLine) {
       {good + "\n" + good, "room_a · points · sequential 1 is planned twice"},
   };
   for (const auto& [lines, message] : cases) {
+    const std::string text = head + lines + "\n";  // (clang 14 cannot capture a binding)
     const std::string line = std::to_string(contains(message, "twice") ? 7 : 6);
-    expect_input_error([&] { parse_plan(head + lines + "\n", "/b/plan.tsv", s); },
+    expect_input_error([&] { parse_plan(text, "/b/plan.tsv", s); },
                        {"/b/plan.tsv:" + line + ": ", message});
   }
   expect_input_error([&] { parse_plan("hello\n", "/b/plan.tsv", s); },
