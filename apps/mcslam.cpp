@@ -159,19 +159,20 @@ int run_command(mcslam::app::RunRequest request, bool quiet) {
   return summary["state"] == "interrupted" ? 130 : 0;
 }
 
-int bench_command(const mcslam::app::BenchRequest& request, bool quiet) {
-  if (request.list_only) {
-    std::cout << mcslam::app::list_sequences(request);
-    return 0;
-  }
-  if (request.output_dir.empty()) throw mcslam::InputError("bench: --output is required");
-  const mcslam::app::BenchOutcome outcome = mcslam::app::run_bench(request);
+/// What `mcslam bench` was asked beyond a bench: collect, resubmit or run one task of a plan.
+struct BenchActions {
+  std::string executor = "local";
+  std::string collect, resubmit;
+  std::vector<std::string> task;  // DIR INDEX
+};
+
+/// The tables' summary after a local bench or a collect: 0 when every run succeeded, else 2.
+int report_bench(const mcslam::app::BenchOutcome& outcome, const std::string& dir, bool quiet) {
   if (!quiet) std::cout << "\n" << outcome.markdown << "\n";
   if (!outcome.report_warning.empty())
     std::cerr << "mcslam bench: warning: " << outcome.report_warning << "\n";
   std::cerr << "mcslam bench: " << outcome.runs - outcome.failed << " of " << outcome.runs
-            << " runs succeeded; tables in " << request.output_dir
-            << " (results.md, results.json, runs.csv"
+            << " runs succeeded; tables in " << dir << " (results.md, results.json, runs.csv"
             << (outcome.report_path.empty() ? "" : ", report.html") << ")\n";
   if (outcome.failed > 0 || outcome.sequences_not_run > 0) {
     std::cerr << "mcslam bench: " << outcome.failed << " run(s) failed and "
@@ -180,6 +181,56 @@ int bench_command(const mcslam::app::BenchRequest& request, bool quiet) {
     return 2;
   }
   return 0;
+}
+
+int task_index(const std::string& text) {
+  std::size_t used = 0;
+  int index = -1;
+  try {
+    index = std::stoi(text, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (used == 0 || used != text.size() || index < 0)
+    throw mcslam::InputError("--run-task: '" + text + "' is not a run number (0, 1, ...)");
+  return index;
+}
+
+/// --collect, --resubmit-failed or --run-task on a bench folder; nullopt when none was given.
+std::optional<int> bench_folder_action(const mcslam::app::BenchRequest& request,
+                                       const BenchActions& actions, bool quiet) {
+  const int given = !actions.collect.empty() + !actions.resubmit.empty() + !actions.task.empty();
+  if (given == 0) return std::nullopt;
+  if (given > 1)
+    throw mcslam::InputError("--collect, --resubmit-failed and --run-task exclude each other");
+  if (!request.data_roots.empty())
+    throw mcslam::InputError(
+        "--collect, --resubmit-failed and --run-task take a bench folder and no DATA_ROOT (the "
+        "folder's plan says what runs)");
+  if (!actions.collect.empty())
+    return report_bench(mcslam::app::collect_bench(actions.collect, !quiet, request.report_assets),
+                        actions.collect, quiet);
+  if (!actions.resubmit.empty()) {
+    std::cout << mcslam::app::resubmit_failed(actions.resubmit, request.slurm).message;
+    return 0;
+  }
+  return mcslam::app::run_bench_task(actions.task.at(0), task_index(actions.task.at(1)));
+}
+
+int bench_command(mcslam::app::BenchRequest request, const BenchActions& actions, bool quiet) {
+  if (actions.executor == "slurm") request.executor = mcslam::app::BenchExecutor::kSlurm;
+  if (request.list_only) {
+    std::cout << mcslam::app::list_sequences(request);
+    return 0;
+  }
+  if (const auto code = bench_folder_action(request, actions, quiet)) return *code;
+  if (request.data_roots.empty()) throw mcslam::InputError("bench: give at least one DATA_ROOT");
+  if (request.output_dir.empty()) throw mcslam::InputError("bench: --output is required");
+  if (request.executor == mcslam::app::BenchExecutor::kSlurm) {
+    std::cout << mcslam::app::submit_bench(request).message;
+    return 0;
+  }
+  return report_bench(mcslam::app::run_bench(request), request.output_dir, quiet);
 }
 
 /// The command as typed, quoted where a shell would need it.
@@ -386,11 +437,11 @@ int main(int argc, char** argv) {
   auto* bench_cmd = cli.add_subcommand(
       "bench",
       "Run every TUM-layout sequence under DATA_ROOT N times per ablation configuration "
-      "(sequential for accuracy, threaded for speed); tables and report.html");
-  bench_cmd
-      ->add_option("data_root", bench.data_roots,
-                   "Folder(s) searched for sequences (folders with rgb.txt and depth.txt)")
-      ->required();
+      "(sequential for accuracy, threaded for speed), here or on a Slurm cluster; tables and "
+      "report.html");
+  BenchActions bench_actions;
+  bench_cmd->add_option("data_root", bench.data_roots,
+                        "Folder(s) searched for sequences (folders with rgb.txt and depth.txt)");
   bench_cmd->add_option("--output,-o", bench.output_dir,
                         "Folder for the results (required unless --list)");
   bench_cmd->add_option("--runs,-n", bench.runs, "Runs per configuration and mode (default 3)");
@@ -420,6 +471,32 @@ int main(int argc, char** argv) {
   bench_cmd->add_option("--report-assets", bench.report_assets,
                         "Folder with report.js (default: report/ beside the mcslam binary)");
   bench_cmd->add_flag("--list", bench.list_only, "Print the sequences found and stop");
+  bench_cmd
+      ->add_option("--executor", bench_actions.executor,
+                   "Who runs the runs: local (this machine, the default) or slurm (one Slurm job "
+                   "array, and a job collecting the results after it)")
+      ->check(CLI::IsMember({"local", "slurm"}));
+  bench_cmd->add_option("--jobs,-j", bench.jobs,
+                        "Local executor: runs at once (default 1; more share the CPUs, and the "
+                        "tables say so)");
+  bench_cmd->add_option("--partition", bench.slurm.partition, "Slurm partition (sbatch default)");
+  bench_cmd->add_option("--time-limit", bench.slurm.time_limit_min,
+                        "Slurm time limit of each run's task, in minutes (partition default)");
+  bench_cmd->add_option("--array-limit", bench.slurm.array_limit,
+                        "Slurm tasks running at once (default: no limit)");
+  bench_cmd->add_option("--sbatch-arg", bench.slurm.sbatch_args,
+                        "Another sbatch option for the batch scripts, e.g. "
+                        "--sbatch-arg=--cpus-per-task=2 (repeatable)");
+  bench_cmd->add_option("--collect", bench_actions.collect,
+                        "Score the runs of bench folder DIR and write its tables and report "
+                        "(what the Slurm collect job does)");
+  bench_cmd->add_option("--resubmit-failed", bench_actions.resubmit,
+                        "Submit again to Slurm the runs of bench folder DIR that have no result");
+  bench_cmd
+      ->add_option("--run-task", bench_actions.task,
+                   "DIR INDEX: run line INDEX (from 0) of DIR/plan.tsv (what each Slurm array "
+                   "task does)")
+      ->expected(2);
   bench_cmd->add_flag("--quiet,-q", quiet, "No per-run progress and no tables on stdout");
 
   mcslam::app::FaultRequest faults;
@@ -614,7 +691,7 @@ int main(int argc, char** argv) {
     if (bench_cmd->parsed()) {
       bench.progress = !quiet;
       bench.command_line = command_line(argc, argv);
-      return bench_command(bench, quiet);
+      return bench_command(bench, bench_actions, quiet);
     }
     if (faults_cmd->parsed()) {
       for (const auto& t : fault_texts) faults.faults.push_back(mcslam::app::parse_fault(t));

@@ -27,6 +27,9 @@ PACKAGES=(
   libsensor-msgs-dev libgeometry-msgs-dev libnav-msgs-dev libstd-msgs-dev
   pluginlib-dev librcpputils-dev libament-index-cpp-dev  # included by rosbag/bag.h
   python3-roslaunch python3-rosmaster rosout
+  # Slurm 22.05 (slurmctld, slurmd, sbatch, squeue, sacct) and munge: the one-node cluster the
+  # test of `mcslam bench --executor slurm` starts on 127.0.0.1 (mcslam links nothing of them)
+  slurm-wlm munge
 )
 # Node.js and npm bundle the report's scripts: Debian's, unless a Node.js with npm is already
 # installed (a newer one from elsewhere would conflict with Debian's npm package).

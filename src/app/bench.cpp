@@ -1,79 +1,125 @@
 #include "mcslam/app/bench.hpp"
 
-#include <unistd.h>
-
+#include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cstdio>
-#include <ctime>
+#include <cstdlib>
+#include <exception>
 #include <filesystem>
-#include <fstream>
+#include <functional>
 #include <iomanip>
 #include <iostream>
+#include <mutex>
+#include <set>
 #include <sstream>
 #include <thread>
 
 #include "mcslam/app/bench/plan.hpp"
+#include "mcslam/app/bench/plan_file.hpp"
 #include "mcslam/app/bench/process.hpp"
-#include "mcslam/app/bench/published.hpp"
-#include "mcslam/app/bench/report.hpp"
-#include "mcslam/app/bench/results.hpp"
+#include "mcslam/app/bench/scoreboard.hpp"
+#include "mcslam/app/bench/slurm.hpp"
+#include "mcslam/app/bench/task.hpp"
 #include "mcslam/core/error.hpp"
-#include "mcslam/eval/bonn.hpp"
 #include "mcslam/io/files.hpp"
-#include "mcslam/io/sequence.hpp"
-#include "mcslam/io/trajectory_io.hpp"
 
 namespace mcslam::app {
+
+std::optional<std::string> BenchRequest::check() const {
+  if (data_roots.empty()) return "give at least one DATA_ROOT folder";
+  if (runs < 1) return "--runs: must be at least 1";
+  if (max_frames < 0) return "--max-frames: must not be negative";
+  if (overlays < 0) return "--overlays: must not be negative";
+  if (confidence && !(*confidence > 0 && *confidence < 1)) return "--confidence: must be in (0, 1)";
+  if (jobs < 1) return "--jobs: must be at least 1";
+  if (executor == BenchExecutor::kLocal) {
+    const SlurmOptions none;
+    if (slurm.partition != none.partition || slurm.time_limit_min != none.time_limit_min ||
+        slurm.array_limit != none.array_limit || !slurm.sbatch_args.empty())
+      return "--partition, --time-limit, --array-limit and --sbatch-arg: only with --executor "
+             "slurm";
+    return std::nullopt;
+  }
+  if (jobs != 1)
+    return "--jobs: only with --executor local (Slurm runs the tasks; --array-limit caps how "
+           "many run at once)";
+  if (!std::filesystem::path(output_dir).is_absolute())
+    return "--output " + output_dir +
+           ": with --executor slurm the output folder must be an absolute path, on a file "
+           "system that the cluster's nodes share: the tasks write their runs into it from "
+           "the nodes and the collect job reads them there";
+  if (output_dir.find_first_of(" \t\n'\"") != std::string::npos)
+    return "--output " + output_dir +
+           ": with --executor slurm the folder's path must not hold spaces or quotes (it goes "
+           "into #SBATCH lines)";
+  return slurm.check();
+}
+
 namespace {
 
 namespace fs = std::filesystem;
 using namespace bench;
 
-struct Plan {
-  std::vector<Sequence> sequences;
-  std::vector<Config> configs;
-  std::vector<Mode> modes;
-};
+std::string path_variable() {
+  const char* path = std::getenv("PATH");
+  return path ? path : "";
+}
 
-Plan make_plan(const BenchRequest& request) {
-  if (request.data_roots.empty()) throw InputError("give at least one DATA_ROOT folder");
-  if (request.runs < 1) throw InputError("--runs: must be at least 1");
-  if (request.max_frames < 0) throw InputError("--max-frames: must not be negative");
-  if (request.overlays < 0) throw InputError("--overlays: must not be negative");
+/// The bench's settings from a checked request: sequences found, configurations and modes.
+/// For Slurm, every path is made absolute: the tasks and the collect job do not start in the
+/// folder the bench was submitted from.
+BenchSettings settings_for(BenchRequest request) {
+  if (request.executor == BenchExecutor::kSlurm) {
+    for (std::string& root : request.data_roots) root = fs::absolute(root).string();
+    if (request.model) request.model = fs::absolute(*request.model).string();
+  }
   if (request.model) {
     std::error_code ec;
     if (!fs::is_regular_file(*request.model, ec))
       throw InputError(file_error(*request.model, "no such model file (--model)"));
   }
-  if (request.confidence && !(*request.confidence > 0 && *request.confidence < 1))
-    throw InputError("--confidence: must be in (0, 1)");
-  Plan plan;
-  plan.configs = select_configs(request.configs);
-  plan.modes = select_modes(request.modes);
-  plan.sequences = filter_sequences(discover_sequences(request.data_roots, request.output_dir),
-                                    request.sequences);
-  if (plan.sequences.empty()) {
+  BenchSettings s;
+  s.command = request.command_line;
+  s.created_utc = utc_now();
+  s.executor = request.executor;
+  s.jobs = request.jobs;
+  s.runs = request.runs;
+  s.configs = select_configs(request.configs);
+  s.modes = select_modes(request.modes);
+  s.sequences = filter_sequences(discover_sequences(request.data_roots, request.output_dir),
+                                 request.sequences);
+  if (s.sequences.empty()) {
     std::string roots;
     for (const auto& r : request.data_roots) roots += (roots.empty() ? "" : ", ") + r;
     throw InputError(roots +
                      ": no TUM-layout sequence (a folder with rgb.txt and depth.txt) in it");
   }
-  return plan;
+  s.model = request.model;
+  s.confidence = request.confidence;
+  s.max_frames = request.max_frames;
+  s.timeout_s = request.timeout_s;
+  s.overlays = request.overlays;
+  s.slurm = request.slurm;
+  return s;
 }
 
-std::string utc_now() {
-  const std::time_t now = std::time(nullptr);
-  std::tm tm{};
-  gmtime_r(&now, &tm);
-  char text[32];
-  std::strftime(text, sizeof(text), "%Y-%m-%dT%H:%M:%SZ", &tm);
-  return text;
-}
+/// A bench planned and its plan written into the output folder.
+struct Prepared {
+  BenchSettings settings;
+  Scoreboard board;
+  std::vector<PlannedRun> runs;
+};
 
-std::string host_name() {
-  char name[256] = {};
-  if (gethostname(name, sizeof(name) - 1) != 0) return "unknown";
-  return name;
+Prepared prepare(const BenchRequest& request) {
+  if (auto e = request.check()) throw InputError(*e);
+  BenchSettings settings = settings_for(request);
+  io::ensure_directory(request.output_dir);
+  Scoreboard board(settings);
+  std::vector<PlannedRun> runs = board.plan(request.output_dir);
+  write_plan_files(request.output_dir, {settings, runs});
+  forget_submissions(request.output_dir);
+  return {std::move(settings), std::move(board), std::move(runs)};
 }
 
 std::string minutes(double seconds) {
@@ -87,326 +133,405 @@ std::string minutes(double seconds) {
   return s.str();
 }
 
-/// The run whose trajectory (and map, overlays) the report shows for one configuration.
-struct Representative {
-  std::string dir;
-  std::string folder;
-  Trajectory estimate;
-  std::optional<eval::EvalReport> report;
-};
+std::string relative_to(const std::string& path, const std::string& dir) {
+  return fs::path(path).lexically_relative(dir).string();
+}
 
-/// Everything the bench knows about one sequence while it runs.
-struct SequenceState {
-  SequenceResult result;
-  BoxSource boxes;
-  std::optional<Trajectory> groundtruth;
-  double t0 = 1, t1 = 0;  // time span of the frames run (t0 > t1: unknown)
-  std::vector<std::optional<Representative>> representatives;  // per configuration
-};
+std::string slurm_text(const TaskState& s, const std::string& sacct_note) {
+  if (s.state.empty())
+    return "Slurm: state unknown (job " + s.job + (sacct_note.empty() ? "" : "; " + sacct_note) +
+           ")";
+  return "Slurm: " + s.state + " (job " + s.job + ", from " + s.source + ")";
+}
 
-SequenceState prepare_sequence(const Sequence& sequence, const std::vector<Config>& configs,
-                               const BenchRequest& request) {
-  SequenceState state;
-  state.result.sequence = sequence;
-  state.boxes = box_source_for(sequence, request.model);
-  state.result.boxes = state.boxes.describe();
-  state.result.published = published_for(sequence.name);
-  try {
-    const io::RgbdSequence seq = io::RgbdSequence::open(sequence.path);
-    std::size_t frames = seq.frames().size();
-    if (request.max_frames > 0)
-      frames = std::min(frames, static_cast<std::size_t>(request.max_frames));
-    state.result.frames = static_cast<int>(frames);
-    if (frames > 0) {
-      state.t0 = seq.frames().front().rgb_timestamp;
-      state.t1 = seq.frames()[frames - 1].rgb_timestamp;
-    }
-    if (const auto gt = seq.groundtruth_path()) {
-      try {
-        state.groundtruth = io::read_tum_trajectory(*gt);
-        if (sequence.kind == DatasetKind::kBonn)
-          state.groundtruth = eval::bonn_marker_to_camera(*state.groundtruth);
-      } catch (const InputError& e) {
-        state.result.groundtruth_note = std::string("ground truth not used: ") + e.what();
-      }
+std::string missing_text(const std::string& dir, const PlannedRun& run, const TaskState* slurm) {
+  if (!slurm)
+    return "no result: the run did not end (no " + relative_to(task_record_path(dir, run), dir) +
+           ")";
+  if (still_active(slurm->state)) return "no result yet: the task is " + slurm->state;
+  if (slurm->state == "TIMEOUT") return "no result: Slurm ended the task at its time limit";
+  return "no result: the task ended without a record of its run";
+}
+
+/// What the k-th run gets in the failed-runs table: the reason, the Slurm state when the run
+/// was a Slurm task, and the log to read. Empty for a run that succeeded.
+std::string failure_of(const std::string& dir, std::size_t k, const PlannedRun& run,
+                       const std::optional<TaskRecord>& record, const TaskState* slurm,
+                       const std::string& sacct_note) {
+  if (record && record->ok()) return "";
+  std::string text =
+      record ? (record->error.empty() ? "failed" : record->error) : missing_text(dir, run, slurm);
+  std::string log = relative_to(run_log(dir, run), dir);
+  if (slurm) {
+    text += "; " + slurm_text(*slurm, sacct_note);
+    const std::string array_job = slurm->job.substr(0, slurm->job.find('_'));
+    if (!record) log = relative_to(task_output_path(dir, array_job, static_cast<int>(k)), dir);
+  }
+  return text + "; log: " + log;
+}
+
+std::string executor_text(const BenchSettings& s, const std::vector<Submission>& submissions) {
+  if (s.executor == BenchExecutor::kSlurm) {
+    std::string ids;
+    for (const Submission& sub : submissions) ids += (ids.empty() ? "" : ", ") + sub.array_job;
+    if (ids.empty()) return "Slurm (not submitted)";
+    return (submissions.size() == 1 ? "Slurm job array " : "Slurm job arrays ") + ids;
+  }
+  if (s.jobs > 1)
+    return std::to_string(s.jobs) +
+           " runs at once on this machine (speed figures measured while runs shared its CPUs)";
+  return "";
+}
+
+BenchMeta meta_for(const BenchSettings& s) {
+  BenchMeta meta;
+  meta.created_utc = s.created_utc;
+  meta.command = s.command;
+  meta.hostname = host_name();
+  meta.cpus = static_cast<int>(std::thread::hardware_concurrency());
+  meta.runs_per_mode = s.runs;
+  meta.modes = s.modes;
+  meta.executor = executor_text(s, {});
+  return meta;
+}
+
+using Clock = std::chrono::steady_clock;
+
+/// One line per run on stderr: "[k/n] sequence · configuration · mode i/runs ... figures".
+/// One run at a time, the line starts when the run does; with several at once, it is written
+/// whole when the run ends.
+class Progress {
+ public:
+  Progress(bool enabled, const BenchSettings& settings, std::size_t total, bool live)
+      : enabled_(enabled),
+        settings_(settings),
+        total_(total),
+        live_(live),
+        width_(static_cast<int>(std::to_string(total).size())) {}
+
+  double elapsed() const { return std::chrono::duration<double>(Clock::now() - start_).count(); }
+
+  void started(const PlannedRun& run) {
+    if (!enabled_ || !live_) return;
+    std::cerr << head(done_ + 1, run) << std::flush;
+  }
+
+  void finished(const PlannedRun& run, const RunRecord& record) {
+    ++done_;
+    if (!enabled_) return;
+    std::ostringstream line;
+    if (!live_) line << head(done_, run);
+    if (!record.ok) {
+      line << "FAILED: " << record.error;
     } else {
-      state.result.groundtruth_note = "no groundtruth.txt, so no ATE or RPE";
+      line.setf(std::ios::fixed);
+      if (record.ate_rmse_m) line << "ATE " << std::setprecision(4) << *record.ate_rmse_m << " m, ";
+      if (record.tracked_ratio)
+        line << "tracked " << std::setprecision(0) << 100 * *record.tracked_ratio << " %, ";
+      if (record.fps) line << std::setprecision(1) << *record.fps << " fps, ";
+      line << minutes(record.wall_s);
     }
-  } catch (const InputError& e) {
-    // `mcslam run` would fail the same way: the sequence is reported once and not run.
-    state.result.error = std::string("sequence unreadable: ") + e.what();
+    const double done = elapsed();
+    const double left = done / done_ * (total_ - done_);
+    std::cerr << line.str() << "  [" << minutes(done) << " elapsed"
+              << (done_ < total_ ? ", about " + minutes(left) + " left" : std::string()) << "]\n";
   }
-  for (const Config& c : configs) {
-    ConfigResult cr;
-    cr.config = c;
-    if (c.boxes && !state.boxes.any())
-      cr.skipped = "no boxes for this sequence (give --model, or put a detections.json in it)";
-    state.result.configs.push_back(cr);
-  }
-  state.representatives.resize(configs.size());
-  return state;
-}
 
-struct Job {
-  std::size_t sequence = 0, config = 0;
-  Mode mode = Mode::kSequential;
-  int index = 1;
+ private:
+  std::string head(std::size_t n, const PlannedRun& run) const {
+    std::string label = run.config;
+    for (const Config& c : settings_.configs)
+      if (c.name == run.config) label = c.label;
+    char text[64];
+    std::snprintf(text, sizeof(text), "[%*zu/%zu] ", width_, n, total_);
+    return text + run.sequence + " · " + label + " · " + to_string(run.mode) + " " +
+           std::to_string(run.index) + "/" + std::to_string(settings_.runs) + " ... ";
+  }
+
+  bool enabled_;
+  const BenchSettings& settings_;
+  std::size_t total_;
+  bool live_;
+  int width_;
+  std::size_t done_ = 0;
+  Clock::time_point start_ = Clock::now();
 };
 
-void write_tables(const fs::path& out, const BenchMeta& meta,
-                  const std::vector<SequenceState>& states, std::string* markdown_out) {
-  std::vector<SequenceResult> results;
-  for (const SequenceState& s : states) results.push_back(s.result);
-  for (SequenceResult& r : results)
-    for (ConfigResult& c : r.configs) summarise(c);
-  const std::string md = markdown(meta, results);
-  io::write_file_atomic((out / "results.md").string(), md);
-  io::write_file_atomic((out / "runs.csv").string(), runs_csv(results));
-  io::write_file_atomic((out / "results.json").string(),
-                        results_json(meta, results).dump(1) + "\n");
-  if (markdown_out) *markdown_out = md;
-}
-
-nlohmann::json report_data(const BenchMeta& meta, const std::vector<SequenceState>& states,
-                           const std::vector<Config>& configs, const std::string& markdown_text,
-                           int overlays) {
-  std::vector<SequenceResult> results;
-  for (const SequenceState& s : states) results.push_back(s.result);
-  for (SequenceResult& r : results)
-    for (ConfigResult& c : r.configs) summarise(c);
-  nlohmann::json data = results_json(meta, results);
-  data["format"] = "mcslam-bench-report";
-  data["markdown"] = markdown_text;
-  data["configs"] = nlohmann::json::array();
-  for (const Config& c : configs)
-    data["configs"].push_back(
-        {{"name", c.name}, {"label", c.label}, {"description", c.description}});
-  data["failed_runs"] = nlohmann::json::array();
-  for (std::size_t si = 0; si < states.size(); ++si) {
-    const SequenceState& state = states[si];
-    nlohmann::json& js = data["sequences"][si];
-    if (state.result.error)
-      data["failed_runs"].push_back({{"sequence", state.result.sequence.name},
-                                     {"config", "all"},
-                                     {"mode", nullptr},
-                                     {"index", nullptr},
-                                     {"error", *state.result.error}});
-    for (const ConfigResult& c : results[si].configs)
-      for (const RunRecord& r : c.runs)
-        if (!r.ok)
-          data["failed_runs"].push_back({{"sequence", r.sequence},
-                                         {"config", r.config},
-                                         {"mode", to_string(r.mode)},
-                                         {"index", r.index},
-                                         {"error", r.error}});
-    js["groundtruth"] = state.groundtruth
-                            ? groundtruth_json(*state.groundtruth, state.t0 - 0.5, state.t1 + 0.5)
-                            : nlohmann::json(nullptr);
-    std::optional<std::size_t> map_config;
-    for (std::size_t ci = 0; ci < configs.size(); ++ci) {
-      const auto& rep = state.representatives[ci];
-      js["results"][ci]["trajectory"] =
-          rep ? trajectory_json(rep->estimate, rep->report ? &*rep->report : nullptr)
-              : nlohmann::json(nullptr);
-      if (rep) js["results"][ci]["trajectory"]["run"] = rep->folder;
-      if (rep && fs::exists(fs::path(rep->dir) / "map.json")) map_config = ci;
-    }
-    js["published"] = nlohmann::json::array();
-    for (const PublishedRow& row : state.result.published) {
-      const auto ours = our_figure(results[si], row.compares_with);
-      nlohmann::json values = nlohmann::json::array();
-      for (const auto& [method, v] : row.values) values.push_back({method, v});
-      js["published"].push_back(
-          {{"table", row.table},
-           {"metric", row.metric},
-           {"source", row.source},
-           {"ours_config", ours ? nlohmann::json(ours->first) : nlohmann::json(nullptr)},
-           {"ours", ours ? nlohmann::json(ours->second) : nlohmann::json(nullptr)},
-           {"values", values}});
-    }
-    js["map"] = nullptr;
-    js["overlays"] = nlohmann::json::array();
-    if (map_config) {
-      const Representative& rep = *state.representatives[*map_config];
+/// Runs tasks 0..n-1 on `jobs` threads: `run(k)` outside any lock, then `done(k, record)` under
+/// one lock, in the order the runs end. The first exception stops the pool and is rethrown.
+void run_pool(std::size_t n, int jobs, const std::function<TaskRecord(std::size_t)>& run,
+              const std::function<void(std::size_t, const TaskRecord&)>& done) {
+  std::atomic<std::size_t> next{0};
+  std::mutex mutex;
+  std::exception_ptr error;
+  const auto worker = [&] {
+    for (std::size_t k = next++; k < n; k = next++) {
       try {
-        nlohmann::json m = map_json((fs::path(rep.dir) / "map.json").string());
-        m["config"] = configs[*map_config].name;
-        m["run"] = rep.folder;
-        js["map"] = m;
-      } catch (const InputError& e) {
-        std::cerr << "mcslam bench: warning: no map in the report: " << e.what() << "\n";
+        const TaskRecord record = run(k);
+        std::lock_guard<std::mutex> lock(mutex);
+        if (!error) done(k, record);
+      } catch (...) {
+        std::lock_guard<std::mutex> lock(mutex);
+        if (!error) error = std::current_exception();
+        next = n;
       }
     }
-    for (std::size_t ci = configs.size(); ci-- > 0;) {
-      const auto& rep = state.representatives[ci];
-      if (!rep || !fs::exists(fs::path(rep->dir) / "overlays")) continue;
-      js["overlays"] = overlays_json(rep->dir, overlays);
-      break;
-    }
+  };
+  std::vector<std::thread> threads;
+  for (std::size_t i = 1; i < std::min(static_cast<std::size_t>(jobs), n); ++i)
+    threads.emplace_back(worker);
+  worker();
+  for (std::thread& t : threads) t.join();
+  if (error) std::rethrow_exception(error);
+}
+
+/// The tables and the report, once every run is in.
+void finish(BenchOutcome& outcome, const Scoreboard& board, const std::string& dir,
+            const BenchMeta& meta, const std::string& assets) {
+  outcome.markdown = board.write_tables(dir, meta);
+  outcome.report_path =
+      board.write_report(dir, meta, outcome.markdown, assets, outcome.report_warning);
+}
+
+std::string assets_for(const std::string& given, const std::string& executable) {
+  return given.empty() ? (fs::path(executable).parent_path() / "report").string() : given;
+}
+
+/// The executable the runs use: the request's, or this one.
+std::string executable_for(const std::string& given) {
+  const std::string exe = given.empty() ? current_executable() : given;
+  if (exe.empty()) throw InputError("cannot find the mcslam executable to run (/proc/self/exe)");
+  return exe;
+}
+
+std::string submitted_message(const std::string& dir, const Submission& s, std::size_t runs) {
+  std::ostringstream m;
+  m << "mcslam bench: submitted " << s.tasks.size() << " of " << runs << " runs as Slurm job array "
+    << s.array_job << " (" << dir << "/slurm/runs-" << s.number << ".sbatch), and job "
+    << s.collect_job << " to collect them after it (afterany)\n"
+    << "  follow:      squeue --jobs=" << s.array_job << "," << s.collect_job << "\n"
+    << "  afterwards:  sacct --jobs=" << s.array_job
+    << " --format=JobID,State,Elapsed,ExitCode,NodeList\n"
+    << "  results:     " << dir << "/results.md and report.html once job " << s.collect_job
+    << " has ended (any time: mcslam bench --collect " << dir << ")\n"
+    << "  failed runs: mcslam bench --resubmit-failed " << dir << "\n";
+  return m.str();
+}
+
+/// The records of every run of a plan (nullopt: the run has none).
+std::vector<std::optional<TaskRecord>> records_of(const std::string& dir, const PlanFiles& plan) {
+  std::vector<std::optional<TaskRecord>> records;
+  for (const PlannedRun& run : plan.runs)
+    records.push_back(read_task_record(task_record_path(dir, run)));
+  return records;
+}
+
+/// The plan lines without a successful record.
+std::vector<int> unfinished(const std::vector<std::optional<TaskRecord>>& records) {
+  std::vector<int> tasks;
+  for (std::size_t k = 0; k < records.size(); ++k)
+    if (!records[k] || !records[k]->ok()) tasks.push_back(static_cast<int>(k));
+  return tasks;
+}
+
+/// The bench's meta for tables collected from run records: the hosts that ran them, and the
+/// wall time from the first run's start to the last one's end.
+BenchMeta collected_meta(const BenchSettings& s, const std::vector<Submission>& submissions,
+                         const std::vector<std::optional<TaskRecord>>& records) {
+  BenchMeta meta = meta_for(s);
+  meta.executor = executor_text(s, submissions);
+  std::set<std::string> hosts;
+  double first = 0, last = 0;
+  for (const auto& r : records) {
+    if (!r || r->start_unix <= 0) continue;
+    hosts.insert(r->host);
+    meta.cpus = std::max(meta.cpus, r->cpus);
+    first = first > 0 ? std::min(first, r->start_unix) : r->start_unix;
+    last = std::max(last, r->end_unix);
   }
-  return data;
+  std::string names;
+  for (const std::string& h : hosts) names += (names.empty() ? "" : ", ") + h;
+  if (!names.empty()) meta.hostname = names;
+  meta.wall_time_s = last > first ? last - first : 0;
+  return meta;
+}
+
+SlurmOptions merged(SlurmOptions base, const SlurmOptions& given) {
+  if (!given.partition.empty()) base.partition = given.partition;
+  if (given.time_limit_min > 0) base.time_limit_min = given.time_limit_min;
+  if (given.array_limit > 0) base.array_limit = given.array_limit;
+  if (!given.sbatch_args.empty()) base.sbatch_args = given.sbatch_args;
+  return base;
+}
+
+SlurmTools slurm_tools(const std::string& what) {
+  SlurmTools tools = SlurmTools::from_path(path_variable());
+  if (tools.sbatch.empty())
+    throw InputError(what +
+                     ": no sbatch on PATH (run it where jobs are submitted to the cluster, "
+                     "usually a login node, or install Slurm's client, Debian's slurm-client); "
+                     "nothing was submitted");
+  return tools;
 }
 
 }  // namespace
 
 std::string list_sequences(const BenchRequest& request) {
-  const Plan plan = make_plan(request);
+  BenchRequest listing = request;  // what would run, whoever runs it
+  listing.executor = BenchExecutor::kLocal;
+  listing.jobs = 1;
+  listing.slurm = {};
+  if (auto e = listing.check()) throw InputError(*e);
+  const BenchSettings settings = settings_for(listing);
   std::ostringstream s;
-  for (const Sequence& seq : plan.sequences)
+  for (const Sequence& seq : settings.sequences)
     s << seq.name << "  " << to_string(seq.kind)
       << "  boxes: " << box_source_for(seq, request.model).describe() << "  " << seq.path << "\n";
   return s.str();
 }
 
 BenchOutcome run_bench(const BenchRequest& request) {
-  const Plan plan = make_plan(request);
-  const fs::path out(request.output_dir);
-  io::ensure_directory(out.string());
-  const std::string exe = request.executable.empty() ? current_executable() : request.executable;
-  if (exe.empty()) throw InputError("cannot find the mcslam executable to run (/proc/self/exe)");
-
-  BenchMeta meta;
-  meta.created_utc = utc_now();
-  meta.command = request.command_line;
-  meta.hostname = host_name();
-  meta.cpus = static_cast<int>(std::thread::hardware_concurrency());
-  meta.runs_per_mode = request.runs;
-  meta.modes = plan.modes;
-
-  std::vector<SequenceState> states;
-  for (const Sequence& s : plan.sequences)
-    states.push_back(prepare_sequence(s, plan.configs, request));
-
-  std::vector<Job> jobs;
-  for (std::size_t si = 0; si < states.size(); ++si)
-    for (std::size_t ci = 0; ci < plan.configs.size(); ++ci) {
-      if (states[si].result.configs[ci].skipped || states[si].result.error) continue;
-      for (Mode mode : plan.modes)
-        for (int i = 1; i <= request.runs; ++i) jobs.push_back({si, ci, mode, i});
-    }
-  // The configuration whose first run saves overlays: the last one run on the sequence.
-  std::vector<std::optional<std::size_t>> overlay_config(states.size());
-  for (const Job& j : jobs) overlay_config[j.sequence] = j.config;
-
-  if (request.progress)
-    std::cerr << "mcslam bench: " << states.size() << " sequence(s), " << plan.configs.size()
-              << " configuration(s), " << jobs.size() << " runs; results in " << out.string()
-              << "\n";
-  const auto start = std::chrono::steady_clock::now();
-  auto elapsed = [&] {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  };
+  if (request.executor != BenchExecutor::kLocal)
+    throw InputError("run_bench runs on this machine: use submit_bench for Slurm");
+  Prepared p = prepare(request);
+  const std::string exe = executable_for(request.executable), &out = request.output_dir;
+  BenchMeta meta = meta_for(p.settings);
   BenchOutcome outcome;
-  for (const SequenceState& s : states)
-    if (s.result.error) {
-      ++outcome.sequences_not_run;
-      if (request.progress)
-        std::cerr << "mcslam bench: " << s.result.sequence.name << " not run: " << *s.result.error
-                  << "\n";
-    }
-  const int width = static_cast<int>(std::to_string(jobs.size()).size());
-  for (std::size_t k = 0; k < jobs.size(); ++k) {
-    const Job& job = jobs[k];
-    SequenceState& state = states[job.sequence];
-    const Config& config = plan.configs[job.config];
-    const bool first = job.mode == plan.modes.front() && job.index == 1;
-    RunSpec spec;
-    spec.sequence = &state.result.sequence;
-    spec.config = &config;
-    spec.mode = job.mode;
-    spec.index = job.index;
-    const std::string folder = run_folder_name(job.mode, job.index);
-    const fs::path relative = fs::path("runs") / spec.sequence->name / config.name / folder;
-    spec.output_dir = (out / relative).string();
-    spec.save_map = first;
-    spec.save_overlays =
-        first && request.overlays > 0 && overlay_config[job.sequence] == job.config;
-    const std::string log = spec.output_dir + ".log";
-    std::error_code ec;
-    fs::remove_all(spec.output_dir, ec);
-    fs::remove(log, ec);
-    io::ensure_directory(spec.output_dir);
-
-    if (request.progress) {
-      std::fprintf(stderr, "[%*zu/%zu] %s · %s · %s %d/%d ... ", width, k + 1, jobs.size(),
-                   spec.sequence->name.c_str(), config.label.c_str(), to_string(job.mode),
-                   job.index, request.runs);
-      std::fflush(stderr);
-    }
-    const ProcessResult process =
-        run_process(exe, run_arguments(spec, state.boxes, request.max_frames, request.confidence),
-                    log, request.timeout_s);
-    eval::EvalReport report;
-    RunRecord record;
-    if (process.ok()) {
-      record = score_run(spec, relative.string(), state.groundtruth, &report);
-    } else {
-      record.sequence = spec.sequence->name;
-      record.config = config.name;
-      record.mode = job.mode;
-      record.index = job.index;
-      record.output = relative.string();
-      record.error = failure_text(process, log, request.timeout_s);
-    }
-    record.wall_s = process.wall_s;
-    ++outcome.runs;
-    if (!record.ok) ++outcome.failed;
-    auto& representative = state.representatives[job.config];
-    if (record.ok && !representative) {
-      Representative rep;
-      rep.dir = spec.output_dir;
-      rep.folder = folder;
-      try {
-        rep.estimate = io::read_tum_trajectory(spec.output_dir + "/trajectory.txt");
-      } catch (const InputError&) {
-      }
-      if (record.ate_rmse_m) rep.report = report;
-      representative = std::move(rep);
-    }
-    if (request.progress) {
-      std::ostringstream line;
-      if (!record.ok) {
-        line << "FAILED: " << record.error;
-      } else {
-        line.setf(std::ios::fixed);
-        if (record.ate_rmse_m)
-          line << "ATE " << std::setprecision(4) << *record.ate_rmse_m << " m, ";
-        if (record.tracked_ratio)
-          line << "tracked " << std::setprecision(0) << 100 * *record.tracked_ratio << " %, ";
-        if (record.fps) line << std::setprecision(1) << *record.fps << " fps, ";
-        line << minutes(record.wall_s);
-      }
-      const double done = elapsed();
-      const double left = done / (k + 1) * (jobs.size() - k - 1);
-      std::cerr << line.str() << "  [" << minutes(done) << " elapsed"
-                << (k + 1 < jobs.size() ? ", about " + minutes(left) + " left" : std::string())
-                << "]\n";
-    }
-    state.result.configs[job.config].runs.push_back(std::move(record));
-    meta.wall_time_s = elapsed();
-    write_tables(out, meta, states, nullptr);
-  }
-
-  meta.wall_time_s = elapsed();
-  write_tables(out, meta, states, &outcome.markdown);
-
-  const fs::path assets = request.report_assets.empty() ? fs::path(exe).parent_path() / "report"
-                                                        : fs::path(request.report_assets);
-  const fs::path bundle_path = assets / "report.js";
-  std::ifstream bundle(bundle_path, std::ios::binary);
-  if (!bundle) {
-    outcome.report_warning = "report.html not written: the report's scripts " +
-                             bundle_path.string() +
-                             " were not built (run scripts/install-deps.sh, then rebuild)";
-  } else {
-    std::ostringstream js;
-    js << bundle.rdbuf();
-    const nlohmann::json data =
-        report_data(meta, states, plan.configs, outcome.markdown, request.overlays);
-    outcome.report_path = (out / "report.html").string();
-    io::write_file_atomic(outcome.report_path, report_html(data, js.str()));
-  }
+  outcome.sequences_not_run = p.board.sequences_not_run();
+  if (request.progress)
+    std::cerr << "mcslam bench: " << p.settings.sequences.size() << " sequence(s), "
+              << p.settings.configs.size() << " configuration(s), " << p.runs.size() << " runs"
+              << (request.jobs > 1 ? ", " + std::to_string(request.jobs) + " at once" : "")
+              << "; results in " << out << "\n";
+  Progress progress(request.progress, p.settings, p.runs.size(), request.jobs == 1);
+  run_pool(
+      p.runs.size(), request.jobs,
+      [&](std::size_t k) {
+        progress.started(p.runs[k]);
+        return execute_run(out, p.runs[k], exe, request.timeout_s, "");
+      },
+      [&](std::size_t k, const TaskRecord& task) {
+        const std::string failure = failure_of(out, k, p.runs[k], task, nullptr, "");
+        const RunRecord& record = p.board.add(k, p.runs[k], out, failure, task.wall_s);
+        ++outcome.runs;
+        outcome.failed += record.ok ? 0 : 1;
+        progress.finished(p.runs[k], record);
+        meta.wall_time_s = progress.elapsed();
+        p.board.write_tables(out, meta);
+      });
+  meta.wall_time_s = progress.elapsed();
+  finish(outcome, p.board, out, meta, assets_for(request.report_assets, exe));
   return outcome;
+}
+
+SubmitOutcome submit_bench(const BenchRequest& request) {
+  if (request.executor != BenchExecutor::kSlurm)
+    throw InputError("submit_bench submits to Slurm: use run_bench on this machine");
+  if (auto e = request.check()) throw InputError(*e);
+  const SlurmTools tools = slurm_tools("--executor slurm");
+  const std::string exe = executable_for(request.executable);
+  Prepared p = prepare(request);
+  if (p.runs.empty())
+    throw InputError(
+        "nothing to submit: no sequence could be read, or every configuration was "
+        "skipped (see " +
+        request.output_dir + "/" + kPlanFile + ")");
+  std::vector<int> tasks(p.runs.size());
+  for (std::size_t k = 0; k < tasks.size(); ++k) tasks[k] = static_cast<int>(k);
+  const Submission s = submit(request.output_dir, exe, tools, p.settings.slurm, tasks);
+  return {static_cast<int>(tasks.size()), s.array_job, s.collect_job,
+          submitted_message(request.output_dir, s, p.runs.size())};
+}
+
+SubmitOutcome resubmit_failed(const std::string& dir, const SlurmOptions& slurm) {
+  if (!fs::path(dir).is_absolute())
+    throw InputError("--resubmit-failed " + dir +
+                     ": give the bench folder as an absolute path (the cluster's nodes use it)");
+  if (auto e = slurm.check()) throw InputError(*e);
+  const SlurmTools tools = slurm_tools("--resubmit-failed");
+  PlanFiles plan = read_plan_files(dir);
+  for (const PlannedRun& run : plan.runs)
+    if (!fs::path(run.output()).is_absolute())
+      throw InputError(file_error((fs::path(dir) / kPlanFile).string(),
+                                  run.describe() + " writes into the relative folder " +
+                                      run.output() +
+                                      ": Slurm's tasks need absolute paths (make the bench "
+                                      "again with --executor slurm)"));
+  const std::vector<int> candidates = unfinished(records_of(dir, plan));
+  const TaskStates states = query_states(dir, read_submissions(dir), candidates, tools);
+  std::vector<int> tasks;
+  for (int t : candidates) {
+    const auto it = states.by_task.find(t);
+    if (it == states.by_task.end() || !still_active(it->second.state)) tasks.push_back(t);
+  }
+  SubmitOutcome outcome;
+  const std::size_t active = candidates.size() - tasks.size();
+  const std::string busy =
+      active ? std::to_string(active) + " run(s) still queued or running; " : std::string();
+  if (tasks.empty()) {
+    outcome.message = "mcslam bench: nothing to resubmit: " + busy +
+                      (active ? "the others have" : "every run has") + " a result\n";
+    return outcome;
+  }
+  plan.settings.slurm = merged(plan.settings.slurm, slurm);
+  plan.settings.executor = BenchExecutor::kSlurm;
+  write_plan_files(dir, plan);
+  const Submission s = submit(dir, executable_for(""), tools, plan.settings.slurm, tasks);
+  outcome = {static_cast<int>(tasks.size()), s.array_job, s.collect_job,
+             (busy.empty() ? "" : "mcslam bench: " + busy + "not resubmitted\n") +
+                 submitted_message(dir, s, plan.runs.size())};
+  return outcome;
+}
+
+BenchOutcome collect_bench(const std::string& dir, bool progress, const std::string& assets) {
+  const PlanFiles plan = read_plan_files(dir);
+  Scoreboard board(plan.settings);
+  for (std::size_t k = 0; k < plan.runs.size(); ++k)
+    if (auto e = board.check(plan.runs[k]))
+      throw InputError(file_error((fs::path(dir) / kPlanFile).string(),
+                                  "run " + plan.runs[k].describe() + ": " + *e));
+  const auto records = records_of(dir, plan);
+  const std::vector<Submission> submissions = read_submissions(dir);
+  const TaskStates states =
+      query_states(dir, submissions, unfinished(records), SlurmTools::from_path(path_variable()));
+  BenchOutcome outcome;
+  outcome.sequences_not_run = board.sequences_not_run();
+  for (std::size_t k = 0; k < plan.runs.size(); ++k) {
+    const auto it = states.by_task.find(static_cast<int>(k));
+    const TaskState* slurm = it == states.by_task.end() ? nullptr : &it->second;
+    const std::string failure =
+        failure_of(dir, k, plan.runs[k], records[k], slurm, states.sacct_note);
+    const RunRecord& r =
+        board.add(k, plan.runs[k], dir, failure, records[k] ? records[k]->wall_s : 0.0);
+    ++outcome.runs;
+    outcome.failed += r.ok ? 0 : 1;
+    if (progress && !r.ok)
+      std::cerr << "mcslam bench: " << plan.runs[k].describe() << ": " << r.error << "\n";
+  }
+  const BenchMeta meta = collected_meta(plan.settings, submissions, records);
+  finish(outcome, board, dir, meta, assets_for(assets, current_executable()));
+  return outcome;
+}
+
+int run_bench_task(const std::string& dir, int index) {
+  const PlanFiles plan = read_plan_files(dir);
+  if (index < 0 || static_cast<std::size_t>(index) >= plan.runs.size())
+    throw InputError(file_error((fs::path(dir) / kPlanFile).string(),
+                                "has no run " + std::to_string(index) + " (its " +
+                                    std::to_string(plan.runs.size()) + " runs are 0 to " +
+                                    std::to_string(plan.runs.size() - 1) + ")"));
+  const PlannedRun& run = plan.runs[static_cast<std::size_t>(index)];
+  const char* job = std::getenv("SLURM_ARRAY_JOB_ID");
+  const char* task = std::getenv("SLURM_ARRAY_TASK_ID");
+  const std::string slurm_job = job && task ? std::string(job) + "_" + task : std::string();
+  std::cout << "mcslam bench: run " << index << " of " << dir << ": " << run.describe() << " on "
+            << host_name() << std::endl;
+  const TaskRecord record =
+      execute_run(dir, run, executable_for(""), plan.settings.timeout_s, slurm_job);
+  std::cout << "mcslam bench: "
+            << (record.ok() ? "done in " + minutes(record.wall_s) : "FAILED: " + record.error)
+            << " (log " << run_log(dir, run) << ")" << std::endl;
+  return record.ok() ? 0 : 2;
 }
 
 }  // namespace mcslam::app

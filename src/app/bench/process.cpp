@@ -6,7 +6,9 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <cerrno>
 #include <chrono>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -83,6 +85,28 @@ ProcessResult run_process(const std::string& executable, const std::vector<std::
   if (WIFEXITED(status)) result.exit_code = WEXITSTATUS(status);
   if (WIFSIGNALED(status)) result.signal = WTERMSIG(status);
   return result;
+}
+
+CapturedProcess capture_process(const std::string& executable, const std::vector<std::string>& args,
+                                double timeout_s) {
+  std::string path =
+      (std::filesystem::temp_directory_path() / "mcslam-bench-output-XXXXXX").string();
+  const int fd = mkstemp(path.data());
+  CapturedProcess captured;
+  if (fd < 0) {
+    captured.output = "cannot make a temporary file in " +
+                      std::filesystem::temp_directory_path().string() + ": " + std::strerror(errno);
+    return captured;
+  }
+  close(fd);
+  captured.result = run_process(executable, args, path, timeout_s);
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream s;
+  s << in.rdbuf();
+  captured.output = s.str();
+  std::error_code ec;
+  std::filesystem::remove(path, ec);
+  return captured;
 }
 
 std::string failure_text(const ProcessResult& result, const std::string& log_path,

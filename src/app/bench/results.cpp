@@ -308,7 +308,8 @@ std::string markdown(const BenchMeta& meta, const std::vector<SequenceResult>& s
                    std::string(to_string(meta.modes[i]));
         return names;
       }()
-     << ") · wall time " << fixed(meta.wall_time_s / 60.0, 1) << " min\n\n";
+     << ") · wall time " << fixed(meta.wall_time_s / 60.0, 1) << " min"
+     << (meta.executor.empty() ? "" : " · " + meta.executor) << "\n\n";
   const bool sequential = std::count(meta.modes.begin(), meta.modes.end(), Mode::kSequential);
   const bool threaded = std::count(meta.modes.begin(), meta.modes.end(), Mode::kThreaded);
   md << "ATE and RPE (over 1 s) are scored with mcslam's eval code on the whole trajectory (every "
@@ -515,6 +516,7 @@ nlohmann::json results_json(const BenchMeta& meta, const std::vector<SequenceRes
   j["modes"] = nlohmann::json::array();
   for (Mode m : meta.modes) j["modes"].push_back(to_string(m));
   j["wall_time_s"] = meta.wall_time_s;
+  j["executor"] = meta.executor.empty() ? nlohmann::json(nullptr) : nlohmann::json(meta.executor);
   j["sequences"] = nlohmann::json::array();
   for (const SequenceResult& s : sequences) {
     nlohmann::json js = {{"name", s.sequence.name},

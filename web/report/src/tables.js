@@ -78,6 +78,8 @@ export function header(data, ctx) {
     h('dt', null, 'Machine'), h('dd', null, machineText),
     h('dt', null, 'Runs'), h('dd', null, runsText),
     h('dt', null, 'Wall time'), h('dd', null, duration(data.wall_time_s)),
+    data.executor ? h('dt', null, 'Executed by') : null,
+    data.executor ? h('dd', null, text(data.executor)) : null,
   );
   const cards = h('div', { class: 'cards' },
     card('Sequences', String((data.sequences || []).length)),

@@ -23,6 +23,17 @@ struct ProcessResult {
 ProcessResult run_process(const std::string& executable, const std::vector<std::string>& args,
                           const std::string& log_path, double timeout_s);
 
+/// The output of a short command (stdout and stderr together), and how it ended.
+struct CapturedProcess {
+  ProcessResult result;
+  std::string output;
+};
+
+/// run_process with the output captured (through a temporary file) instead of kept in a log:
+/// how the bench calls sbatch, sacct and squeue.
+CapturedProcess capture_process(const std::string& executable, const std::vector<std::string>& args,
+                                double timeout_s);
+
 /// Why a run failed, in one line: the child's own "mcslam: error: ..." line when the log has
 /// one (else its last line), after "exit code N", "killed by signal N (name)" or "timed out".
 std::string failure_text(const ProcessResult& result, const std::string& log_path,

@@ -95,6 +95,9 @@ struct BenchMeta {
   int runs_per_mode = 0;
   std::vector<Mode> modes;
   double wall_time_s = 0;
+  /// How the runs were executed when that changes what the figures mean ("2 runs at once on
+  /// this machine", "Slurm job array 17"); empty for one run at a time on this machine.
+  std::string executor;
 };
 
 /// Our figure for a published row: the last configuration that has one (the full system when
