@@ -215,91 +215,36 @@ TrackingOutcome Tracker::track(const Frame& frame, bool mapper_idle, std::size_t
 
   Associations assoc(frame);
   SE3 T_c_w;
-  bool ok = false;
-  bool relocalised = false;
-  bool tried_relocalisation = false;
-  // The constant-velocity prediction over this frame's own interval: after a dropped frame (live
-  // cameras, --realtime) it spans two steps, and one step's motion would leave half the turn
-  // to the matching window (at freiburg1_rpy's 1.5 rad/s, 3 degrees).
-  const auto predict = [&](const SE3& T_last) {
-    const std::optional<SE3> motion =
-        last_ ? predicted_motion(frame.timestamp - last_->frame.timestamp) : std::nullopt;
-    return motion ? (*motion) * T_last : T_last;
-  };
-  const auto first_estimate = [&] {
-    if (state_ == TrackingState::kOk) {
-      const std::optional<SE3> T_last = last_frame_pose();
-      if (T_last) {
-        const SE3 prediction = predict(*T_last);
-        ok = track_last_frame(frame, prediction, assoc, T_c_w);
-        // A sudden motion breaks the constant-velocity model: retry from the last pose.
-        if (!ok && velocity_) {
-          assoc.clear();
-          ok = track_last_frame(frame, *T_last, assoc, T_c_w);
-        }
-      }
-      if (!ok) {
-        assoc.clear();
-        ok = track_reference_keyframe(frame, assoc, T_c_w);
-      }
-    } else {
-      relocalisation_ = RelocalisationInfo{};
-      ok = relocalise(frame, assoc, T_c_w);
-      relocalised = ok;
-      tried_relocalisation = true;
-    }
-  };
   // The first estimate leaves out the features of objects known to move; when that leaves too
   // little (a moving object filling the view), all features go in and the robust loss copes.
   {
     std::optional<SE3> predicted;
     if (state_ == TrackingState::kOk)
-      if (const auto T_last = last_frame_pose()) predicted = predict(*T_last);
+      if (const auto T_last = last_frame_pose()) predicted = predict(frame, *T_last);
     objects_.prepare(frame, predicted);
   }
   if (times) times->add("object_prepare", watch.elapsed_ms());
   watch.restart();
-  first_estimate();
-  if (!ok && objects_.any()) {
+  FirstEstimate first = first_estimate(frame, assoc, T_c_w);
+  if (!first.ok && objects_.any()) {
     objects_.include_all();
     assoc.clear();
-    first_estimate();
+    first = first_estimate(frame, assoc, T_c_w);
   }
-  if (relocalised) last_relocalisation_frame_ = frame.id;
+  if (first.relocalised) last_relocalisation_frame_ = frame.id;
   if (times) times->add("track_frame", watch.elapsed_ms());
 
-  if (ok && objects_.any()) {
+  if (first.ok && objects_.any()) {
     watch.restart();
     objects_.classify(frame, T_c_w);
     if (times) times->add("dynamics", watch.elapsed_ms());
   }
 
   watch.restart();
-  int inliers = 0;
-  if (ok) {
-    const bool recent_reloc = frame.id < last_relocalisation_frame_ + 2;
-    inliers =
-        track_local_map(frame, assoc, T_c_w, recent_reloc ? 5.0 : options_.local_map_search_radius);
-    inliers = remove_movers(frame, assoc, T_c_w, inliers);
-    const int needed = frame.id < last_relocalisation_frame_ + options_.max_frames_between_keyframes
-                           ? options_.min_relocalisation_inliers
-                           : options_.min_local_map_inliers;
-    ok = inliers >=
-         (relocalised || last_relocalisation_frame_ > 0 ? needed : options_.min_local_map_inliers);
-    // Planes help but never carry tracking alone: with a blank colour image the frame is lost.
-    ok = ok && assoc.inlier_points(false) + assoc.inlier_lines(false) >= options_.min_pose_inliers;
-  }
+  const bool ok = first.ok && refine_with_local_map(frame, assoc, T_c_w, first.relocalised);
   if (times) times->add("track_local_map", watch.elapsed_ms());
 
-  TrackingOutcome out;
-  out.objects = objects_.outputs(frame);
-  out.relocalised = relocalised && ok;
-  if (tried_relocalisation) out.relocalisation = relocalisation_;
-  out.matches = assoc.active_points();
-  out.inliers = assoc.inlier_points(false);
-  out.line_matches = assoc.active_lines();
-  out.line_inliers = assoc.inlier_lines(false);
-  out.plane_inliers = assoc.inlier_planes();
+  TrackingOutcome out = outcome_of(frame, assoc, first, ok);
   if (!ok) {
     state_ = TrackingState::kLost;
     velocity_.reset();
@@ -307,8 +252,78 @@ TrackingOutcome Tracker::track(const Frame& frame, bool mapper_idle, std::size_t
     out.state = state_;
     return out;
   }
-
   watch.restart();
+  accept(frame, assoc, T_c_w, mapper_idle, mapper_queue, out);
+  if (times) times->add("keyframe_decision", watch.elapsed_ms());
+  return out;
+}
+
+SE3 Tracker::predict(const Frame& frame, const SE3& T_last) const {
+  // The constant-velocity prediction over this frame's own interval: after a dropped frame (live
+  // cameras, --realtime) it spans two steps, and one step's motion would leave half the turn
+  // to the matching window (at freiburg1_rpy's 1.5 rad/s, 3 degrees).
+  const std::optional<SE3> motion =
+      last_ ? predicted_motion(frame.timestamp - last_->frame.timestamp) : std::nullopt;
+  return motion ? (*motion) * T_last : T_last;
+}
+
+Tracker::FirstEstimate Tracker::first_estimate(const Frame& frame, Associations& assoc,
+                                               SE3& T_c_w) {
+  FirstEstimate first;
+  if (state_ != TrackingState::kOk) {
+    relocalisation_ = RelocalisationInfo{};
+    first.ok = relocalise(frame, assoc, T_c_w);
+    first.relocalised = first.ok;
+    first.tried_relocalisation = true;
+    return first;
+  }
+  if (const std::optional<SE3> T_last = last_frame_pose()) {
+    first.ok = track_last_frame(frame, predict(frame, *T_last), assoc, T_c_w);
+    // A sudden motion breaks the constant-velocity model: retry from the last pose.
+    if (!first.ok && velocity_) {
+      assoc.clear();
+      first.ok = track_last_frame(frame, *T_last, assoc, T_c_w);
+    }
+  }
+  if (!first.ok) {
+    assoc.clear();
+    first.ok = track_reference_keyframe(frame, assoc, T_c_w);
+  }
+  return first;
+}
+
+bool Tracker::refine_with_local_map(const Frame& frame, Associations& assoc, SE3& T_c_w,
+                                    bool relocalised) {
+  const bool recent_reloc = frame.id < last_relocalisation_frame_ + 2;
+  int inliers =
+      track_local_map(frame, assoc, T_c_w, recent_reloc ? 5.0 : options_.local_map_search_radius);
+  inliers = remove_movers(frame, assoc, T_c_w, inliers);
+  const int needed = frame.id < last_relocalisation_frame_ + options_.max_frames_between_keyframes
+                         ? options_.min_relocalisation_inliers
+                         : options_.min_local_map_inliers;
+  const bool ok =
+      inliers >=
+      (relocalised || last_relocalisation_frame_ > 0 ? needed : options_.min_local_map_inliers);
+  // Planes help but never carry tracking alone: with a blank colour image the frame is lost.
+  return ok && assoc.inlier_points(false) + assoc.inlier_lines(false) >= options_.min_pose_inliers;
+}
+
+TrackingOutcome Tracker::outcome_of(const Frame& frame, const Associations& assoc,
+                                    const FirstEstimate& first, bool ok) const {
+  TrackingOutcome out;
+  out.objects = objects_.outputs(frame);
+  out.relocalised = first.relocalised && ok;
+  if (first.tried_relocalisation) out.relocalisation = relocalisation_;
+  out.matches = assoc.active_points();
+  out.inliers = assoc.inlier_points(false);
+  out.line_matches = assoc.active_lines();
+  out.line_inliers = assoc.inlier_lines(false);
+  out.plane_inliers = assoc.inlier_planes();
+  return out;
+}
+
+void Tracker::accept(const Frame& frame, const Associations& assoc, const SE3& T_c_w,
+                     bool mapper_idle, std::size_t mapper_queue, TrackingOutcome& out) {
   if (const auto T_last = last_frame_pose(); T_last && state_ == TrackingState::kOk) {
     velocity_ = T_c_w * T_last->inverse();
     velocity_dt_ = frame.timestamp - last_->frame.timestamp;
@@ -330,8 +345,6 @@ TrackingOutcome Tracker::track(const Frame& frame, bool mapper_idle, std::size_t
   remember_last_frame(frame, assoc, T_c_w, out.reference);
   out.T_c_ref = last_->T_c_ref;
   objects_.remember(frame, T_c_w);
-  if (times) times->add("keyframe_decision", watch.elapsed_ms());
-  return out;
 }
 
 TrackingOutcome Tracker::initialize(const Frame& frame) {

@@ -180,6 +180,24 @@ class Tracker {
   };
 
   TrackingOutcome initialize(const Frame& frame);
+  /// The frame's first estimate: from the last frame, else the reference keyframe; when lost,
+  /// relocalisation.
+  struct FirstEstimate {
+    bool ok = false;
+    bool relocalised = false;
+    bool tried_relocalisation = false;
+  };
+  FirstEstimate first_estimate(const Frame& frame, Associations& assoc, SE3& T_c_w);
+  /// The constant-velocity prediction of the frame's pose from the last frame's.
+  SE3 predict(const Frame& frame, const SE3& T_last) const;
+  /// The local map's matches, the movers without a box, and the frame's success test.
+  bool refine_with_local_map(const Frame& frame, Associations& assoc, SE3& T_c_w, bool relocalised);
+  /// The outcome's counts and objects, whether or not the frame was tracked.
+  TrackingOutcome outcome_of(const Frame& frame, const Associations& assoc,
+                             const FirstEstimate& first, bool ok) const;
+  /// A tracked frame: velocity, keyframe decision, the last frame's record.
+  void accept(const Frame& frame, const Associations& assoc, const SE3& T_c_w, bool mapper_idle,
+              std::size_t mapper_queue, TrackingOutcome& out);
   /// Re-anchors the tracker's world-frame history (the last frame's pose and feature tracks, the
   /// object handler's past poses) through the motion of the last frame's reference keyframe
   /// since that frame was tracked. Call under the map's read lock.
