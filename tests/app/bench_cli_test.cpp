@@ -24,13 +24,10 @@
 namespace {
 
 namespace fs = std::filesystem;
+using mcslam::test::contains;
 using mcslam::test::quote;
 using mcslam::test::read_file;
 using mcslam::test::TempDir;
-
-bool contains(const std::string& text, const std::string& part) {
-  return text.find(part) != std::string::npos;
-}
 
 mcslam::test::CliResult bench(const TempDir& dir, const std::string& args) {
   return mcslam::test::run_command(MCSLAM_EXE, "bench " + args, dir / "stdout.txt",

@@ -21,12 +21,9 @@ namespace mcslam::app::bench {
 namespace {
 
 namespace fs = std::filesystem;
+using test::contains;
 using test::expect_input_error;
 using test::TempDir;
-
-bool contains(const std::string& text, const std::string& part) {
-  return text.find(part) != std::string::npos;
-}
 
 BenchSettings two_sequences() {
   BenchSettings s;
