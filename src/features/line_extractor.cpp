@@ -11,6 +11,7 @@
 #include <opencv2/line_descriptor.hpp>
 #include <opencv2/ximgproc/fast_line_detector.hpp>
 #include <optional>
+#include <utility>
 #include <vector>
 
 #include "mcslam/core/error.hpp"
@@ -141,6 +142,114 @@ std::optional<Eigen::Vector3d> ray_line_point(const Eigen::Vector3d& ray, const 
   return on_ray;
 }
 
+/// Bilinear intensity of an 8-bit image (at least 2x2) at pixel-centre coordinates (x, y),
+/// clamped to the image.
+double intensity(const cv::Mat& image, double x, double y) {
+  x = std::clamp(x, 0.0, image.cols - 1.0);
+  y = std::clamp(y, 0.0, image.rows - 1.0);
+  const int x0 = std::min(static_cast<int>(x), image.cols - 2);
+  const int y0 = std::min(static_cast<int>(y), image.rows - 2);
+  const double ax = x - x0;
+  const double ay = y - y0;
+  const std::uint8_t* r0 = image.ptr<std::uint8_t>(y0);
+  const std::uint8_t* r1 = image.ptr<std::uint8_t>(y0 + 1);
+  return (1.0 - ay) * ((1.0 - ax) * r0[x0] + ax * r0[x0 + 1]) +
+         ay * ((1.0 - ax) * r1[x0] + ax * r1[x0 + 1]);
+}
+
+/// Samples taken along a segment to refine its position across its direction.
+constexpr int kRefineSamples = 24;
+/// The edge is searched this many pixels to each side of the segment (detection image): FLD's
+/// edge pixels are within one pixel of the intensity step.
+constexpr int kRefineReach = 2;
+/// A refinement that would move the segment further than this (detection-image pixels) is
+/// refused: it found another edge, not this one's sub-pixel position.
+constexpr double kRefineMaxShift = 1.0;
+
+/// Where an intensity step crosses the line through p along `normal`: the offset (pixels along
+/// the normal) of the strongest directional derivative within kRefineReach, and the step's sign
+/// (+1: brighter along the normal). The derivative is a central difference of the bilinear image,
+/// one pixel apart, at whole-pixel offsets; the peak is that of a Gaussian through the strongest
+/// response and its two neighbours (a blurred step's derivative is one), or of a parabola when a
+/// neighbour has no response. Nothing when the strongest response is at the end of the reach.
+std::optional<std::pair<double, int>> step_across(const cv::Mat& image, const Eigen::Vector2d& p,
+                                                  const Eigen::Vector2d& normal) {
+  std::array<double, 2 * kRefineReach + 1> response{};
+  for (int t = -kRefineReach; t <= kRefineReach; ++t) {
+    const Eigen::Vector2d plus = p + (t + 0.5) * normal;
+    const Eigen::Vector2d minus = p + (t - 0.5) * normal;
+    response[static_cast<std::size_t>(t + kRefineReach)] =
+        intensity(image, plus.x(), plus.y()) - intensity(image, minus.x(), minus.y());
+  }
+  std::size_t best = 0;
+  for (std::size_t i = 1; i < response.size(); ++i)
+    if (std::abs(response[i]) > std::abs(response[best])) best = i;
+  if (best == 0 || best + 1 == response.size()) return std::nullopt;
+  const double l = std::abs(response[best - 1]);
+  const double c = std::abs(response[best]);
+  const double r = std::abs(response[best + 1]);
+  const double curvature = l - 2.0 * c + r;
+  if (!(curvature < 0.0) || !(c > 0.0)) return std::nullopt;
+  double peak = 0.5 * (l - r) / curvature;
+  if (l > 0.0 && r > 0.0) {
+    const double log_curvature = std::log(l) - 2.0 * std::log(c) + std::log(r);
+    if (log_curvature < 0.0) peak = 0.5 * (std::log(l) - std::log(r)) / log_curvature;
+  }
+  return std::pair{static_cast<double>(best) - kRefineReach + peak, response[best] > 0.0 ? 1 : -1};
+}
+
+/// Moves an FLD segment (detection-image coordinates) onto the sub-pixel position of its
+/// intensity step. FLD fits its segments to Canny's edge pixels, which lie on one side of a step
+/// edge, half a pixel off on average. The step is found across the segment at kRefineSamples
+/// points along it (step_across), and a line fitted to the offsets (offset = a + b * position
+/// along the segment) moves both endpoints. Samples of the other polarity than the majority are
+/// left out; with fewer than a third of the samples left, or a shift beyond kRefineMaxShift,
+/// the segment stays as it was.
+void refine_segment(const cv::Mat& image, cv::Vec4f& segment) {
+  const Eigen::Vector2d a(segment[0], segment[1]);
+  const Eigen::Vector2d b(segment[2], segment[3]);
+  const double length = (b - a).norm();
+  if (!(length > 2.0)) return;
+  const Eigen::Vector2d dir = (b - a) / length;
+  const Eigen::Vector2d normal(-dir.y(), dir.x());
+  struct Sample {
+    double position, offset;
+    int sign;
+  };
+  std::array<Sample, kRefineSamples> samples{};
+  int found = 0;
+  int positive = 0;
+  for (int k = 0; k < kRefineSamples; ++k) {
+    const double s = (k + 0.5) / kRefineSamples * length;
+    if (const auto step = step_across(image, a + s * dir, normal)) {
+      samples[static_cast<std::size_t>(found++)] = {s, step->first, step->second};
+      positive += step->second > 0 ? 1 : 0;
+    }
+  }
+  const int polarity = 2 * positive >= found ? 1 : -1;
+  double sw = 0.0, ss = 0.0, so = 0.0, sss = 0.0, sso = 0.0;
+  for (int k = 0; k < found; ++k) {
+    const Sample& sample = samples[static_cast<std::size_t>(k)];
+    if (sample.sign != polarity) continue;
+    sw += 1.0;
+    ss += sample.position;
+    so += sample.offset;
+    sss += sample.position * sample.position;
+    sso += sample.position * sample.offset;
+  }
+  if (sw < kRefineSamples / 3.0) return;
+  const double det = sw * sss - ss * ss;
+  if (!(det > 1e-9)) return;
+  const double slope = (sw * sso - ss * so) / det;
+  const double shift_a = (so - slope * ss) / sw;
+  const double shift_b = shift_a + slope * length;
+  if (!(std::abs(shift_a) <= kRefineMaxShift) || !(std::abs(shift_b) <= kRefineMaxShift)) return;
+  const Eigen::Vector2d a2 = a + shift_a * normal;
+  const Eigen::Vector2d b2 = b + shift_b * normal;
+  segment = cv::Vec4f(static_cast<float>(a2.x()), static_cast<float>(a2.y()),
+                      static_cast<float>(b2.x()), static_cast<float>(b2.y()));
+}
+
 }  // namespace
 
 std::optional<std::string> LineOptions::check() const {
@@ -266,6 +375,20 @@ std::vector<LineFeature> LineExtractor::extract(const cv::Mat& gray) const {
   if (candidates.size() > static_cast<std::size_t>(options_.max_lines))
     candidates.resize(static_cast<std::size_t>(options_.max_lines));
   if (candidates.empty()) return result;
+  // FLD's segments are moved onto their edges' sub-pixel position (LSD's already are), only
+  // those kept: the refinement moves a segment by at most a pixel of the detection image.
+  if (impl.fld) {
+    for (Candidate& c : candidates) {
+      cv::Vec4f refined = impl.segments[static_cast<std::size_t>(c.index)];
+      refine_segment(image, refined);
+      Eigen::Vector2d a = to_full(refined[0], refined[1]);
+      Eigen::Vector2d b = to_full(refined[2], refined[3]);
+      if (a.allFinite() && b.allFinite() && clip_to_image(a, b, gray.cols, gray.rows)) {
+        c.start = a;
+        c.end = b;
+      }
+    }
+  }
 
   // LBD on the detection image, where LSD found the segments (so its 9 bands of 7 pixels are
   // detection-image pixels): at full resolution the descriptor costs ~3x more, its support

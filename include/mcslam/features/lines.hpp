@@ -18,18 +18,17 @@ namespace mcslam::features {
 using LineDescriptor = OrbDescriptor;
 
 struct LineOptions {
-  /// The segment detector: "lsd" (OpenCV's Line Segment Detector) or "fld" (the Fast Line
-  /// Detector of OpenCV contrib's ximgproc: Canny edges split into straight runs), or "auto"
-  /// (the default): LSD, except in runs with a deadline (`mcslam run --realtime`, the ROS node),
-  /// where the application picks FLD. Both run on the image scaled by detection_scale. FLD takes
-  /// 1.6 ms a frame on freiburg1_rpy against LSD's 5.0 (with LBD and the depth fit: 4 against
-  /// 7 ms), but its segments sit on edge pixels (half a detection-image pixel off a step edge,
-  /// where LSD is sub-pixel): as good on the real sequences (sequential with yolov8n:
-  /// freiburg1_rpy 0.0104 against 0.0107 m, Bonn crowd part 1 0.0185 against 0.0204 m) but
-  /// worse on the synthetic crowd (0.0058 against 0.0044 m) and off the true edges in the line
-  /// tests, so not the offline default. In real time on 2 cores with the detector it is what
-  /// lets the frame keep the camera's rate (Bonn crowd part 1 --realtime: 95.7 % of the frames
-  /// processed against 92.0 % with LSD; docs/crowd.md).
+  /// The segment detector: "lsd" (OpenCV's Line Segment Detector, sub-pixel by construction)
+  /// or "fld" (the Fast Line Detector of OpenCV contrib's ximgproc: Canny edges split into
+  /// straight runs, each then moved onto its intensity step to a fraction of a pixel), or
+  /// "auto" (the default): LSD, except in runs with a deadline (`mcslam run --realtime`, the
+  /// ROS node), where the application picks FLD. Both run on the image scaled by
+  /// detection_scale. On freiburg1_rpy at 0.4, FLD with LBD takes 4.0 ms a frame on one core
+  /// against 7.9 ms for LSD. Over 13 synthetic scenes (rooms and crowds, sequential) its ATE is
+  /// 1.03x LSD's (median ratio; 0.75-1.73), but it finds edges LSD leaves out (low-contrast
+  /// creases at grazing angles) whose 3D fit misses the line tests' bound of 1.5 cm at 2.5 m
+  /// (1.8 cm), so it is not the offline default. In real time on 2 cores with the detector it
+  /// is what lets the frame keep the camera's rate (docs/crowd.md).
   std::string detector = "auto";
   /// Segments shorter than this (pixels, full resolution) are dropped.
   double min_length = 25.0;
