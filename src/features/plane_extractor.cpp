@@ -878,6 +878,7 @@ class Extraction {
 struct PlaneExtractor::Workspace {
   std::mutex mutex;  // one extraction at a time uses the buffers
   Buffers buffers;
+  cv::Mat sampled;  // the depth image at the pixel step
 };
 
 namespace {
@@ -970,6 +971,9 @@ std::vector<Eigen::Vector3d> plane_hull(const Eigen::Vector3d& normal, double d,
 
 std::optional<std::string> PlaneOptions::check() const {
   if (cell_size < 3 || cell_size > 100) return "planes.cell_size must be in [3, 100]";
+  if (pixel_step < 1 || pixel_step > 4) return "planes.pixel_step must be in [1, 4]";
+  if (cell_size / pixel_step < 3)
+    return "planes.cell_size / planes.pixel_step must be at least 3 (pixels of a cell's side)";
   if (!std::isfinite(cell_tolerance) || cell_tolerance <= 0.0 || cell_tolerance > 1.0)
     return "planes.cell_tolerance must be in (0, 1] metres";
   if (!std::isfinite(cell_tolerance_per_metre) || cell_tolerance_per_metre < 0.0 ||
@@ -992,6 +996,97 @@ std::optional<std::string> PlaneOptions::check() const {
   return std::nullopt;
 }
 
+namespace {
+
+/// The labels of the full depth image from those of its samples (every step-th pixel of every
+/// step-th row): a pixel takes, of the planes of the (up to) four samples around it, the one its
+/// own point is closest to, when that point lies within the extractor's widest inlier band of it
+/// (kInlierFactor cell tolerances); else none. A sample's label does not hold for its neighbours
+/// unchecked: they may lack depth, or lie on a small object on the plane or across its edge.
+/// Each plane's pixel count becomes that of the full image.
+cv::Mat full_labels(const PinholeCamera& camera, const PlaneOptions& options, const cv::Mat& depth,
+                    PlaneExtraction& result, int step) {
+  cv::Mat labels(depth.size(), CV_8SC1, cv::Scalar(-1));
+  for (PlaneFeature& plane : result.planes) plane.num_pixels = 0;
+  if (result.planes.empty()) return labels;
+  // Per plane (n, d) in float: distance = |z * n . ray + d| with ray = (x/z, y/z, 1).
+  std::vector<std::array<float, 4>> hessian;
+  for (const PlaneFeature& plane : result.planes)
+    hessian.push_back({static_cast<float>(plane.normal.x()), static_cast<float>(plane.normal.y()),
+                       static_cast<float>(plane.normal.z()), static_cast<float>(plane.d)});
+  const cv::Mat& sampled = result.labels;
+  // The sample columns left and right of each pixel column (the same one on a sample column).
+  std::vector<int> left(static_cast<std::size_t>(depth.cols));
+  std::vector<int> right(static_cast<std::size_t>(depth.cols));
+  std::vector<float> ray_x(static_cast<std::size_t>(depth.cols));
+  for (int u = 0; u < depth.cols; ++u) {
+    const auto i = static_cast<std::size_t>(u);
+    left[i] = std::min(u / step, sampled.cols - 1);
+    right[i] = std::min(left[i] + (u % step != 0 ? 1 : 0), sampled.cols - 1);
+    ray_x[i] = static_cast<float>(camera.unproject(Eigen::Vector2d(u, 0.0), 1.0).x());
+  }
+  const auto band_min = static_cast<float>(kInlierFactor * options.cell_tolerance);
+  const auto band_z2 = static_cast<float>(kInlierFactor * options.cell_tolerance_per_metre);
+  std::vector<int> counts(result.planes.size(), 0);
+  for (int v = 0; v < depth.rows; ++v) {
+    const auto ray_y = static_cast<float>(camera.unproject(Eigen::Vector2d(0.0, v), 1.0).y());
+    const int sv0 = std::min(v / step, sampled.rows - 1);
+    const int sv1 = std::min(sv0 + (v % step != 0 ? 1 : 0), sampled.rows - 1);
+    const std::int8_t* above = sampled.ptr<std::int8_t>(sv0);
+    const std::int8_t* below = sampled.ptr<std::int8_t>(sv1);
+    const float* row = depth.ptr<float>(v);
+    std::int8_t* out = labels.ptr<std::int8_t>(v);
+    for (int u = 0; u < depth.cols; ++u) {
+      const auto i = static_cast<std::size_t>(u);
+      const std::array<std::int8_t, 4> around{above[left[i]], above[right[i]], below[left[i]],
+                                              below[right[i]]};
+      if ((around[0] & around[1] & around[2] & around[3]) < 0) continue;  // all -1
+      const float z = row[u];
+      if (!(z > 0.0f) || !(z < std::numeric_limits<float>::infinity())) continue;
+      float best_distance = std::max(band_min, band_z2 * z * z);
+      int best = -1;
+      for (int k = 0; k < 4; ++k) {
+        const int label = around[static_cast<std::size_t>(k)];
+        if (label < 0 || label == best) continue;
+        const std::array<float, 4>& n = hessian[static_cast<std::size_t>(label)];
+        const float distance = std::abs(z * (n[0] * ray_x[i] + n[1] * ray_y + n[2]) + n[3]);
+        if (distance <= best_distance) {
+          best = label;
+          best_distance = distance;
+        }
+      }
+      if (best < 0) continue;
+      out[u] = static_cast<std::int8_t>(best);
+      ++counts[static_cast<std::size_t>(best)];
+    }
+  }
+  for (std::size_t k = 0; k < counts.size(); ++k) result.planes[k].num_pixels = counts[k];
+  // Largest first again: two planes of nearly equal size may have swapped.
+  std::vector<std::size_t> order(result.planes.size());
+  for (std::size_t k = 0; k < order.size(); ++k) order[k] = k;
+  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+    return result.planes[a].num_pixels > result.planes[b].num_pixels;
+  });
+  if (std::is_sorted(order.begin(), order.end())) return labels;
+  std::array<std::int8_t, 128> new_index;
+  new_index.fill(-1);
+  std::vector<PlaneFeature> planes;
+  planes.reserve(order.size());
+  for (std::size_t k = 0; k < order.size(); ++k) {
+    new_index[order[k]] = static_cast<std::int8_t>(k);
+    planes.push_back(std::move(result.planes[order[k]]));
+  }
+  result.planes = std::move(planes);
+  for (int v = 0; v < labels.rows; ++v) {
+    std::int8_t* row = labels.ptr<std::int8_t>(v);
+    for (int u = 0; u < labels.cols; ++u)
+      if (row[u] >= 0) row[u] = new_index[static_cast<std::size_t>(row[u])];
+  }
+  return labels;
+}
+
+}  // namespace
+
 PlaneExtractor::PlaneExtractor(const PinholeCamera& camera, const PlaneOptions& options)
     : camera_(camera), options_(options), workspace_(std::make_unique<Workspace>()) {
   if (auto problem = options_.check()) throw InputError(*problem);
@@ -1006,8 +1101,35 @@ PlaneExtraction PlaneExtractor::extract(const cv::Mat& depth) const {
     return result;
   }
   std::lock_guard<std::mutex> lock(workspace_->mutex);
-  PlaneExtraction result = Extraction(camera_, options_, depth, workspace_->buffers).run();
-  merge_coplanar(options_, result);
+  const int step = options_.pixel_step;
+  if (step == 1) {
+    PlaneExtraction result = Extraction(camera_, options_, depth, workspace_->buffers).run();
+    merge_coplanar(options_, result);
+    return result;
+  }
+  // Every step-th pixel of every step-th row, as a camera whose pixels are step times larger
+  // (pixel u of the sampled image is pixel step * u of the full one, so the principal point
+  // scales with the focal length). Depths are taken, never averaged: an average across a depth
+  // jump would be a point on neither surface.
+  cv::Mat& sampled = workspace_->sampled;
+  sampled.create((depth.rows + step - 1) / step, (depth.cols + step - 1) / step, CV_32FC1);
+  for (int v = 0; v < sampled.rows; ++v) {
+    const float* from = depth.ptr<float>(v * step);
+    float* to = sampled.ptr<float>(v);
+    for (int u = 0; u < sampled.cols; ++u) to[u] = from[u * step];
+  }
+  PinholeCamera camera = camera_;
+  camera.fx /= step;
+  camera.fy /= step;
+  camera.cx /= step;
+  camera.cy /= step;
+  camera.width = sampled.cols;
+  camera.height = sampled.rows;
+  PlaneOptions options = options_;
+  options.cell_size = options_.cell_size / step;
+  PlaneExtraction result = Extraction(camera, options, sampled, workspace_->buffers).run();
+  merge_coplanar(options, result);
+  result.labels = full_labels(camera_, options_, depth, result, step);
   return result;
 }
 

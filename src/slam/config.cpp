@@ -64,6 +64,7 @@ std::vector<Field> mcslam_fields(PinholeCamera& c, SystemOptions& o) {
       {"lines.fit_tolerance_per_metre", &o.lines.fit_tolerance_per_metre},
       {"lines.min_inlier_fraction", &o.lines.min_inlier_fraction},
       {"planes.cell_size", &o.planes.cell_size},
+      {"planes.pixel_step", &o.planes.pixel_step},
       {"planes.cell_tolerance", &o.planes.cell_tolerance},
       {"planes.cell_tolerance_per_metre", &o.planes.cell_tolerance_per_metre},
       {"planes.merge_angle_deg", &o.planes.merge_angle_deg},
