@@ -357,8 +357,13 @@ TEST(PlaneOptions, CheckNamesTheBadField) {
   const std::vector<Case> cases = {
       {"cell_size", [](PlaneOptions& o, double x) { o.cell_size = static_cast<int>(x); }, 2},
       {"cell_size", [](PlaneOptions& o, double x) { o.cell_size = static_cast<int>(x); }, 0},
-      // 5 pixels at the default step of 2: cells of 2x2 samples cannot show a plane's noise.
-      {"cell_size", [](PlaneOptions& o, double x) { o.cell_size = static_cast<int>(x); }, 5},
+      // 5 pixels at a step of 2: cells of 2x2 samples cannot show a plane's noise.
+      {"cell_size",
+       [](PlaneOptions& o, double x) {
+         o.pixel_step = 2;
+         o.cell_size = static_cast<int>(x);
+       },
+       5},
       {"pixel_step", [](PlaneOptions& o, double x) { o.pixel_step = static_cast<int>(x); }, 0},
       {"pixel_step", [](PlaneOptions& o, double x) { o.pixel_step = static_cast<int>(x); }, 5},
       {"cell_tolerance", [](PlaneOptions& o, double x) { o.cell_tolerance = x; }, 0.0},
@@ -420,7 +425,7 @@ TEST(PlaneExtractor, MaxPlanesKeepsTheLargest) {
 
 TEST(PlaneExtractor, OtherCellSizes) {
   // Cell sizes that do not divide the image (partial cells at the right and bottom borders).
-  // Also every pixel (pixel_step 1), and the default step with a cell of 3x3 samples.
+  // Also every other pixel (pixel_step 2) and every third, with cells of 3x3 to 8x8 samples.
   for (auto [cell_size, step] :
        {std::pair{7, 1}, std::pair{16, 1}, std::pair{7, 2}, std::pair{16, 2}, std::pair{10, 3}}) {
     SCOPED_TRACE("cell_size " + std::to_string(cell_size) + " step " + std::to_string(step));
