@@ -998,6 +998,31 @@ std::optional<std::string> PlaneOptions::check() const {
 
 namespace {
 
+/// Orders planes largest first (stable) and renumbers the labels to match: after the full image
+/// is labelled, two planes of nearly equal size may have swapped.
+void sort_by_size(std::vector<PlaneFeature>& planes, cv::Mat& labels) {
+  std::vector<std::size_t> order(planes.size());
+  for (std::size_t k = 0; k < order.size(); ++k) order[k] = k;
+  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+    return planes[a].num_pixels > planes[b].num_pixels;
+  });
+  if (std::is_sorted(order.begin(), order.end())) return;
+  std::array<std::int8_t, 128> new_index;
+  new_index.fill(-1);
+  std::vector<PlaneFeature> sorted;
+  sorted.reserve(order.size());
+  for (std::size_t k = 0; k < order.size(); ++k) {
+    new_index[order[k]] = static_cast<std::int8_t>(k);
+    sorted.push_back(std::move(planes[order[k]]));
+  }
+  planes = std::move(sorted);
+  for (int v = 0; v < labels.rows; ++v) {
+    std::int8_t* row = labels.ptr<std::int8_t>(v);
+    for (int u = 0; u < labels.cols; ++u)
+      if (row[u] >= 0) row[u] = new_index[static_cast<std::size_t>(row[u])];
+  }
+}
+
 /// The labels of the full depth image from those of its samples (every step-th pixel of every
 /// step-th row): a pixel takes, of the planes of the (up to) four samples around it, the one its
 /// own point is closest to, when that point lies within the extractor's widest inlier band of it
@@ -1061,27 +1086,7 @@ cv::Mat full_labels(const PinholeCamera& camera, const PlaneOptions& options, co
     }
   }
   for (std::size_t k = 0; k < counts.size(); ++k) result.planes[k].num_pixels = counts[k];
-  // Largest first again: two planes of nearly equal size may have swapped.
-  std::vector<std::size_t> order(result.planes.size());
-  for (std::size_t k = 0; k < order.size(); ++k) order[k] = k;
-  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
-    return result.planes[a].num_pixels > result.planes[b].num_pixels;
-  });
-  if (std::is_sorted(order.begin(), order.end())) return labels;
-  std::array<std::int8_t, 128> new_index;
-  new_index.fill(-1);
-  std::vector<PlaneFeature> planes;
-  planes.reserve(order.size());
-  for (std::size_t k = 0; k < order.size(); ++k) {
-    new_index[order[k]] = static_cast<std::int8_t>(k);
-    planes.push_back(std::move(result.planes[order[k]]));
-  }
-  result.planes = std::move(planes);
-  for (int v = 0; v < labels.rows; ++v) {
-    std::int8_t* row = labels.ptr<std::int8_t>(v);
-    for (int u = 0; u < labels.cols; ++u)
-      if (row[u] >= 0) row[u] = new_index[static_cast<std::size_t>(row[u])];
-  }
+  sort_by_size(result.planes, labels);
   return labels;
 }
 

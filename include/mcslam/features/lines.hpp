@@ -25,10 +25,10 @@ struct LineOptions {
   /// ROS node), where the application picks FLD. Both run on the image scaled by
   /// detection_scale. On freiburg1_rpy at 0.4, FLD with LBD takes 4.0 ms a frame on one core
   /// against 7.9 ms for LSD. Over 13 synthetic scenes (rooms and crowds, sequential) its ATE is
-  /// 1.03x LSD's (median ratio; 0.75-1.73), but it finds edges LSD leaves out (low-contrast
-  /// creases at grazing angles) whose 3D fit misses the line tests' bound of 1.5 cm at 2.5 m
-  /// (1.8 cm), so it is not the offline default. In real time on 2 cores with the detector it
-  /// is what lets the frame keep the camera's rate (docs/crowd.md).
+  /// 1.03x LSD's (median ratio; 0.75-1.73), but it splits some edges LSD finds whole, and the
+  /// depth fit of a shorter piece can miss the line tests' bound (1.8 cm off the true edge at
+  /// 2.5 m against 1.5 cm), so it is not the offline default. In real time on 2 cores with the
+  /// detector it is what lets the frame keep the camera's rate (docs/crowd.md).
   std::string detector = "auto";
   /// Segments shorter than this (pixels, full resolution) are dropped.
   double min_length = 25.0;
