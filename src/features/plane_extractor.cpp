@@ -883,6 +883,39 @@ struct PlaneExtractor::Workspace {
 
 namespace {
 
+/// Keeps the planes that are their own target (target[i] == i), largest first (stable), and
+/// renumbers the labels: a pixel of plane i takes the new index of plane target[i]. Nothing to do
+/// when every plane is its own target and they are already in order.
+void renumber(const std::vector<int>& target, PlaneExtraction& result) {
+  auto& planes = result.planes;
+  std::vector<int> survivors;
+  for (std::size_t i = 0; i < planes.size(); ++i)
+    if (target[i] == static_cast<int>(i)) survivors.push_back(static_cast<int>(i));
+  std::stable_sort(survivors.begin(), survivors.end(), [&](int x, int y) {
+    return planes[static_cast<std::size_t>(x)].num_pixels >
+           planes[static_cast<std::size_t>(y)].num_pixels;
+  });
+  if (survivors.size() == planes.size() && std::is_sorted(survivors.begin(), survivors.end()))
+    return;
+  std::vector<int> new_index(planes.size(), -1);
+  std::vector<PlaneFeature> kept;
+  for (int k : survivors) {
+    new_index[static_cast<std::size_t>(k)] = static_cast<int>(kept.size());
+    kept.push_back(std::move(planes[static_cast<std::size_t>(k)]));
+  }
+  std::array<std::int8_t, 256> lut;
+  lut.fill(-1);
+  for (std::size_t i = 0; i < target.size(); ++i)
+    lut[static_cast<std::uint8_t>(static_cast<std::int8_t>(i))] =
+        static_cast<std::int8_t>(new_index[static_cast<std::size_t>(target[i])]);
+  for (int v = 0; v < result.labels.rows; ++v) {
+    auto* row = result.labels.ptr<std::int8_t>(v);
+    for (int u = 0; u < result.labels.cols; ++u)
+      if (row[u] >= 0) row[u] = lut[static_cast<std::uint8_t>(row[u])];
+  }
+  planes = std::move(kept);
+}
+
 /// Merges planes that lie on one infinite plane (see PlaneOptions::coplanar_angle_deg) and
 /// renumbers planes (largest first) and labels.
 void merge_coplanar(const PlaneOptions& o, PlaneExtraction& result) {
@@ -914,32 +947,7 @@ void merge_coplanar(const PlaneOptions& o, PlaneExtraction& result) {
       merged = true;
     }
   }
-  if (!merged) return;
-  // Survivors by decreasing size; a lookup table renumbers the labels.
-  std::vector<int> survivors;
-  for (std::size_t i = 0; i < planes.size(); ++i)
-    if (target[i] == static_cast<int>(i)) survivors.push_back(static_cast<int>(i));
-  std::stable_sort(survivors.begin(), survivors.end(), [&](int x, int y) {
-    return planes[static_cast<std::size_t>(x)].num_pixels >
-           planes[static_cast<std::size_t>(y)].num_pixels;
-  });
-  std::vector<int> new_index(planes.size(), -1);
-  std::vector<PlaneFeature> kept;
-  for (int k : survivors) {
-    new_index[static_cast<std::size_t>(k)] = static_cast<int>(kept.size());
-    kept.push_back(std::move(planes[static_cast<std::size_t>(k)]));
-  }
-  std::array<std::int8_t, 256> lut;
-  lut.fill(-1);
-  for (std::size_t i = 0; i < target.size(); ++i)
-    lut[static_cast<std::uint8_t>(static_cast<std::int8_t>(i))] =
-        static_cast<std::int8_t>(new_index[static_cast<std::size_t>(target[i])]);
-  for (int v = 0; v < result.labels.rows; ++v) {
-    auto* row = result.labels.ptr<std::int8_t>(v);
-    for (int u = 0; u < result.labels.cols; ++u)
-      if (row[u] >= 0) row[u] = lut[static_cast<std::uint8_t>(row[u])];
-  }
-  planes = std::move(kept);
+  if (merged) renumber(target, result);
 }
 
 }  // namespace
@@ -997,31 +1005,6 @@ std::optional<std::string> PlaneOptions::check() const {
 }
 
 namespace {
-
-/// Orders planes largest first (stable) and renumbers the labels to match: after the full image
-/// is labelled, two planes of nearly equal size may have swapped.
-void sort_by_size(std::vector<PlaneFeature>& planes, cv::Mat& labels) {
-  std::vector<std::size_t> order(planes.size());
-  for (std::size_t k = 0; k < order.size(); ++k) order[k] = k;
-  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
-    return planes[a].num_pixels > planes[b].num_pixels;
-  });
-  if (std::is_sorted(order.begin(), order.end())) return;
-  std::array<std::int8_t, 128> new_index;
-  new_index.fill(-1);
-  std::vector<PlaneFeature> sorted;
-  sorted.reserve(order.size());
-  for (std::size_t k = 0; k < order.size(); ++k) {
-    new_index[order[k]] = static_cast<std::int8_t>(k);
-    sorted.push_back(std::move(planes[order[k]]));
-  }
-  planes = std::move(sorted);
-  for (int v = 0; v < labels.rows; ++v) {
-    std::int8_t* row = labels.ptr<std::int8_t>(v);
-    for (int u = 0; u < labels.cols; ++u)
-      if (row[u] >= 0) row[u] = new_index[static_cast<std::size_t>(row[u])];
-  }
-}
 
 /// The labels of the full depth image from those of its samples (every step-th pixel of every
 /// step-th row): a pixel takes, of the planes of the (up to) four samples around it, the one its
@@ -1086,7 +1069,6 @@ cv::Mat full_labels(const PinholeCamera& camera, const PlaneOptions& options, co
     }
   }
   for (std::size_t k = 0; k < counts.size(); ++k) result.planes[k].num_pixels = counts[k];
-  sort_by_size(result.planes, labels);
   return labels;
 }
 
@@ -1135,6 +1117,11 @@ PlaneExtraction PlaneExtractor::extract(const cv::Mat& depth) const {
   PlaneExtraction result = Extraction(camera, options, sampled, workspace_->buffers).run();
   merge_coplanar(options, result);
   result.labels = full_labels(camera_, options_, depth, result, step);
+  // Largest first again: the full image's counts may order two planes of nearly equal size
+  // the other way.
+  std::vector<int> themselves(result.planes.size());
+  std::iota(themselves.begin(), themselves.end(), 0);
+  renumber(themselves, result);
   return result;
 }
 
