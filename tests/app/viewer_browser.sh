@@ -3,7 +3,7 @@
 # its frame rate, --realtime, so that the run lasts while the page is checked), then headless
 # Chromium opens the page (web/viewer/check-viewer.mjs): frames arrive, the map grows, the
 # trajectory is drawn, pause and resume, localisation only and back, no console errors. The run
-# (30 s of frames, longer than the check takes) is then stopped with SIGINT and must write its
+# (60 s of frames, longer than the check takes) is then stopped with SIGINT and must write its
 # outputs, its summary.json recording the pause and the two switches.
 # Usage: viewer_browser.sh MCSLAM_EXE OUT_DIR [SCREENSHOT_DIR]
 # Exit 77 (skipped) without Node.js, Chromium or the viewer's scripts, unless
@@ -25,7 +25,11 @@ command -v node > /dev/null 2>&1 || skip "no node"
 
 rm -rf "$out"
 mkdir -p "$out"
-"$exe" synth --output "$out/room" --frames 900 --dynamic -q || exit 1
+# 60 s of frames at 320x240: the check must end before the run does, and on a loaded 2-core
+# machine it took longer than 30 s (a run of 30 s had ended before "localisation only, off
+# again" could be checked). At this size 60 s of frames render in about half the time of 30 s
+# of VGA frames.
+"$exe" synth --output "$out/room" --frames 1800 --width 320 --height 240 --dynamic -q || exit 1
 
 # Port 0: any free port; the run prints the address it listens on.
 "$exe" run "$out/room" --output "$out/run" --detections "$out/room/detections.json" --realtime \

@@ -68,10 +68,13 @@ try {
   await page.waitForFunction(() => window.mcslamViewer.framesReceived >= 3, null, { timeout: 30_000 }).catch(() => {});
   let v = await viewer();
   check(v.framesReceived >= 3, `frames arrive (${v.framesReceived})`);
-  const decoded = await page.evaluate(() => {
+  // The newest frame may still be decoding (a loaded machine): wait for one that is done.
+  const frameDecoded = () => {
     const img = document.querySelector('img[data-view=frame]');
     return img && img.complete ? img.naturalWidth : 0;
-  });
+  };
+  await page.waitForFunction(frameDecoded, null, { timeout: 10_000 }).catch(() => {});
+  const decoded = await page.evaluate(frameDecoded);
   check(decoded > 0, `the frame decodes (width ${decoded})`);
 
   // The map grows and the trajectory is drawn.
