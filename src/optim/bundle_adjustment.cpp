@@ -99,6 +99,11 @@ BundleAdjustmentResult bundle_adjust(const PinholeCamera& camera, BundleAdjustme
   const std::vector<Eigen::Vector3d> points_before = problem.points;
   const std::vector<BundleAdjustmentProblem::Line> lines_before = problem.lines;
   const std::vector<Eigen::Vector4d> planes_before = problem.planes;
+  // Each line as one 6-vector (start | end): one landmark block, eliminated by the Schur solver
+  // (LineSegmentError). Written back into problem.lines after every usable solve.
+  std::vector<Eigen::Matrix<double, 6, 1>> segments(problem.lines.size());
+  for (std::size_t i = 0; i < problem.lines.size(); ++i)
+    segments[i] << problem.lines[i].start, problem.lines[i].end;
   for (int stage = 0; stage < 2; ++stage) {
     const bool robust = stage == 0;
     const int iterations = robust ? options.robust_iterations : options.refine_iterations;
@@ -127,10 +132,9 @@ BundleAdjustmentResult bundle_adjust(const PinholeCamera& camera, BundleAdjustme
       if (!result.line_inlier[k]) continue;
       const auto& obs = problem.line_observations[k];
       double* pose = &poses[static_cast<std::size_t>(obs.pose) * kPoseSize];
-      auto& line = problem.lines[static_cast<std::size_t>(obs.line)];
-      ceres_problem.AddResidualBlock(new LineReprojectionError(camera, obs.measurement),
-                                     robust ? &huber_line : nullptr, pose, line.start.data(),
-                                     line.end.data());
+      double* segment = segments[static_cast<std::size_t>(obs.line)].data();
+      ceres_problem.AddResidualBlock(new LineSegmentError(camera, obs.measurement),
+                                     robust ? &huber_line : nullptr, pose, segment);
     }
     for (std::size_t k = 0; k < problem.plane_observations.size(); ++k) {
       if (!result.plane_inlier[k]) continue;
@@ -168,6 +172,10 @@ BundleAdjustmentResult bundle_adjust(const PinholeCamera& camera, BundleAdjustme
       problem.planes = planes_before;
       result.failed = true;
       return result;
+    }
+    for (std::size_t i = 0; i < problem.lines.size(); ++i) {
+      problem.lines[i].start = segments[i].head<3>();
+      problem.lines[i].end = segments[i].tail<3>();
     }
     if (stage == 0) result.initial_cost = summary.initial_cost;
     result.final_cost = summary.final_cost;

@@ -74,6 +74,25 @@ bool LineReprojectionError::Evaluate(double const* const* parameters, double* re
   return true;
 }
 
+LineSegmentError::LineSegmentError(const PinholeCamera& camera, const LineMeasurement& m)
+    : full_(camera, m) {}
+
+bool LineSegmentError::Evaluate(double const* const* parameters, double* residuals,
+                                double** jacobians) const {
+  const double* params[3] = {parameters[0], parameters[1], parameters[1] + 3};
+  if (jacobians == nullptr) return full_.Evaluate(params, residuals, nullptr);
+  Eigen::Matrix<double, 2, 3, Eigen::RowMajor> J_start, J_end;
+  double* jac[3] = {jacobians[0], jacobians[1] != nullptr ? J_start.data() : nullptr,
+                    jacobians[1] != nullptr ? J_end.data() : nullptr};
+  if (!full_.Evaluate(params, residuals, jac)) return false;
+  if (jacobians[1] != nullptr) {
+    Eigen::Map<Eigen::Matrix<double, 2, 6, Eigen::RowMajor>> J(jacobians[1]);
+    J.leftCols<3>() = J_start;
+    J.rightCols<3>() = J_end;
+  }
+  return true;
+}
+
 PoseOnlyLineError::PoseOnlyLineError(const PinholeCamera& camera, const LineMeasurement& m,
                                      const Eigen::Vector3d& start_w, const Eigen::Vector3d& end_w)
     : full_(camera, m), start_w_(start_w), end_w_(end_w) {}

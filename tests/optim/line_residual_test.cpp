@@ -101,6 +101,51 @@ TEST(LineReprojectionError, JacobiansMatchNumeric) {
   }
 }
 
+TEST(LineSegmentError, OneSixVectorBlockMatchesTheTwoEndpointBlocksAndNumeric) {
+  std::mt19937 rng(13);
+  const PinholeCamera cam = test::make_camera(520.0, 515.0, 320.0, 240.0);
+  for (int trial = 0; trial < 6; ++trial) {
+    const LineCase c = random_case(cam, rng);
+    LineReprojectionError two_blocks(cam, c.m);
+    LineSegmentError one_block(cam, c.m);
+    double pose[7];
+    pose_to_block(c.T_c_w, pose);
+    Eigen::Matrix<double, 6, 1> segment;
+    segment << c.start_w, c.end_w;
+
+    RowJ7 J_pose_two, J_pose_one;
+    RowJ3 J_start, J_end;
+    Eigen::Matrix<double, 2, 6, Eigen::RowMajor> J_segment;
+    const double* params_two[3] = {pose, c.start_w.data(), c.end_w.data()};
+    const double* params_one[2] = {pose, segment.data()};
+    double* jac_two[3] = {J_pose_two.data(), J_start.data(), J_end.data()};
+    double* jac_one[2] = {J_pose_one.data(), J_segment.data()};
+    Eigen::Vector2d r_two, r_one;
+    ASSERT_TRUE(two_blocks.Evaluate(params_two, r_two.data(), jac_two));
+    ASSERT_TRUE(one_block.Evaluate(params_one, r_one.data(), jac_one));
+    EXPECT_EQ((r_two - r_one).norm(), 0.0);
+    EXPECT_EQ((J_pose_two - J_pose_one).norm(), 0.0);
+    EXPECT_EQ((J_segment.leftCols<3>() - J_start).norm(), 0.0);
+    EXPECT_EQ((J_segment.rightCols<3>() - J_end).norm(), 0.0);
+
+    // Only the segment's Jacobian asked for (the pose held constant by Ceres).
+    Eigen::Matrix<double, 2, 6, Eigen::RowMajor> J_segment_only;
+    double* jac_segment_only[2] = {nullptr, J_segment_only.data()};
+    ASSERT_TRUE(one_block.Evaluate(params_one, r_one.data(), jac_segment_only));
+    EXPECT_EQ((J_segment_only - J_segment).norm(), 0.0);
+
+    const Eigen::MatrixXd numeric = test::numeric_jacobian(
+        [&](const Eigen::VectorXd& x) {
+          const double* p[2] = {pose, x.data()};
+          Eigen::Vector2d out;
+          EXPECT_TRUE(one_block.Evaluate(p, out.data(), nullptr));
+          return Eigen::VectorXd(out);
+        },
+        Eigen::VectorXd(segment));
+    EXPECT_LT((numeric - Eigen::MatrixXd(J_segment)).norm(), tolerance(numeric)) << trial;
+  }
+}
+
 TEST(PoseOnlyLineError, MatchesFullResidualAndNumeric) {
   std::mt19937 rng(11);
   const PinholeCamera cam = test::make_camera();

@@ -29,6 +29,22 @@ class LineReprojectionError final : public ceres::SizedCostFunction<2, 7, 3, 3> 
   double sqrt_information_;
 };
 
+/// The same residual with both endpoints in one parameter block (start | end, 6, world), as
+/// bundle adjustment uses it. A line is then a single landmark block that touches only poses,
+/// which Ceres's Schur solvers eliminate like a point. With the endpoints as two blocks of one
+/// residual, the two are linked: only one of them can be eliminated, and every line leaves its
+/// other endpoint in the reduced camera system (3 more unknowns per line, coupled to all the
+/// poses that see it).
+class LineSegmentError final : public ceres::SizedCostFunction<2, 7, 6> {
+ public:
+  LineSegmentError(const PinholeCamera& camera, const LineMeasurement& m);
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override;
+
+ private:
+  LineReprojectionError full_;
+};
+
 /// The same residual with the endpoints held fixed (pose-only optimisation).
 class PoseOnlyLineError final : public ceres::SizedCostFunction<2, 7> {
  public:
