@@ -55,6 +55,7 @@ BundleAdjustmentResult bundle_adjust(const PinholeCamera& camera, BundleAdjustme
     pose_to_block(problem.poses[i], &poses[i * kPoseSize]);
   SE3Manifold manifold;
   PlaneManifold plane_manifold;
+  SegmentManifold segment_manifold;
   ceres::HuberLoss huber_rgbd(std::sqrt(options.chi2_rgbd));
   ceres::HuberLoss huber_mono(std::sqrt(options.chi2_mono));
   ceres::HuberLoss huber_line(std::sqrt(options.chi2_line));
@@ -125,9 +126,8 @@ BundleAdjustmentResult bundle_adjust(const PinholeCamera& camera, BundleAdjustme
                                        robust ? &huber_mono : nullptr, pose, point);
       }
     }
-    // A line's endpoints can slide along the line without changing residual (7). Levenberg-
-    // Marquardt damping keeps the normal equations regular in that direction, so nothing pins
-    // them; they may drift along the line, and the segment's extent is not BA's to keep.
+    // A line's endpoints can slide along the line without changing residual (7); the segment
+    // manifold moves them only across the line (set below).
     for (std::size_t k = 0; k < problem.line_observations.size(); ++k) {
       if (!result.line_inlier[k]) continue;
       const auto& obs = problem.line_observations[k];
@@ -150,6 +150,9 @@ BundleAdjustmentResult bundle_adjust(const PinholeCamera& camera, BundleAdjustme
       plane.head<3>().normalize();
       ceres_problem.SetManifold(plane.data(), &plane_manifold);
     }
+    for (auto& segment : segments)
+      if (ceres_problem.HasParameterBlock(segment.data()))
+        ceres_problem.SetManifold(segment.data(), &segment_manifold);
     for (std::size_t i = 0; i < problem.poses.size(); ++i) {
       double* pose = &poses[i * kPoseSize];
       if (!ceres_problem.HasParameterBlock(pose)) continue;

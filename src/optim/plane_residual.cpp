@@ -6,6 +6,7 @@
 #include <numbers>
 
 #include "mcslam/optim/reprojection.hpp"
+#include "optim/tangent_basis.hpp"
 
 namespace mcslam::optim {
 namespace {
@@ -14,18 +15,6 @@ constexpr double kPi = std::numbers::pi;
 // Floor for squared norms in denominators: keeps Jacobians finite at the chart's poles, which lie
 // 90 degrees away from the observed normal (a gross outlier by then).
 constexpr double kTinySquared = 1e-12;
-
-// An orthonormal basis (b1, b2) of the plane orthogonal to the unit vector n, with (n, b1, b2)
-// right-handed. b1 comes from the axis least aligned with n, so |axis . n| <= 1/sqrt(3) and the
-// projection is well conditioned; the choice only depends on n, which is all Ceres and the chart
-// need (the basis is never compared across different n).
-void tangent_basis(const Eigen::Vector3d& n, Eigen::Vector3d* b1, Eigen::Vector3d* b2) {
-  Eigen::Index k = 0;
-  n.cwiseAbs().minCoeff(&k);
-  const Eigen::Vector3d axis = Eigen::Vector3d::Unit(k);
-  *b1 = (axis - axis.dot(n) * n).normalized();
-  *b2 = n.cross(*b1);
-}
 
 // (phi, theta) of a direction m, with theta = atan2(m_z, |m_xy|), which equals asin(m_z) for unit m
 // but is also defined (and scale invariant) for the slightly non-unit vectors that numeric

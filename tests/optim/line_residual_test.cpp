@@ -146,6 +146,102 @@ TEST(LineSegmentError, OneSixVectorBlockMatchesTheTwoEndpointBlocksAndNumeric) {
   }
 }
 
+TEST(SegmentManifold, MovesEndpointsOnlyAcrossTheLineAndRoundTrips) {
+  std::mt19937 rng(21);
+  std::uniform_real_distribution<double> coord(-2.0, 2.0), step(-0.3, 0.3);
+  SegmentManifold manifold;
+  for (int trial = 0; trial < 30; ++trial) {
+    Eigen::Matrix<double, 6, 1> x;
+    for (int i = 0; i < 6; ++i) x[i] = coord(rng);
+    if (trial == 0) x << 0.0, 0.0, 1.0, 0.0, 0.0, 3.0;  // along an axis
+    const Eigen::Vector3d d = (x.tail<3>() - x.head<3>()).normalized();
+    Eigen::Vector4d delta;
+    for (int i = 0; i < 4; ++i) delta[i] = step(rng);
+    Eigen::Matrix<double, 6, 1> y;
+    ASSERT_TRUE(manifold.Plus(x.data(), delta.data(), y.data()));
+    // Each endpoint moves by |its two coordinates|, across the line.
+    for (int k = 0; k < 2; ++k) {
+      const Eigen::Vector3d moved = y.segment<3>(3 * k) - x.segment<3>(3 * k);
+      EXPECT_NEAR(moved.dot(d), 0.0, 1e-14) << trial;
+      EXPECT_NEAR(moved.norm(), delta.segment<2>(2 * k).norm(), 1e-14) << trial;
+    }
+    Eigen::Vector4d back;
+    ASSERT_TRUE(manifold.Minus(y.data(), x.data(), back.data()));
+    EXPECT_LT((back - delta).norm(), 1e-14) << trial;
+    Eigen::Vector4d zero;
+    ASSERT_TRUE(manifold.Minus(x.data(), x.data(), zero.data()));
+    EXPECT_EQ(zero.norm(), 0.0);
+  }
+  // A segment of zero length still gets a valid chart.
+  const Eigen::Matrix<double, 6, 1> point = Eigen::Matrix<double, 6, 1>::Constant(0.5);
+  const Eigen::Vector4d delta(0.1, -0.2, 0.3, 0.0);
+  Eigen::Matrix<double, 6, 1> moved;
+  ASSERT_TRUE(manifold.Plus(point.data(), delta.data(), moved.data()));
+  EXPECT_TRUE(moved.allFinite());
+  EXPECT_NEAR((moved - point).head<3>().norm(), delta.head<2>().norm(), 1e-14);
+}
+
+TEST(SegmentManifold, JacobiansMatchNumericAndRemoveTheSlidingOfTheEndpoints) {
+  std::mt19937 rng(22);
+  const PinholeCamera cam = test::make_camera(520.0, 515.0, 320.0, 240.0);
+  SegmentManifold manifold;
+  for (int trial = 0; trial < 6; ++trial) {
+    const LineCase c = random_case(cam, rng);
+    Eigen::Matrix<double, 6, 1> x;
+    x << c.start_w, c.end_w;
+    Eigen::Matrix<double, 6, 4, Eigen::RowMajor> P;
+    Eigen::Matrix<double, 4, 6, Eigen::RowMajor> M;
+    ASSERT_TRUE(manifold.PlusJacobian(x.data(), P.data()));
+    ASSERT_TRUE(manifold.MinusJacobian(x.data(), M.data()));
+    const Eigen::MatrixXd num_plus = test::numeric_jacobian(
+        [&](const Eigen::VectorXd& delta) {
+          Eigen::VectorXd out(6);
+          manifold.Plus(x.data(), delta.data(), out.data());
+          return out;
+        },
+        Eigen::VectorXd::Zero(4));
+    const Eigen::MatrixXd num_minus = test::numeric_jacobian(
+        [&](const Eigen::VectorXd& y) {
+          Eigen::VectorXd out(4);
+          manifold.Minus(y.data(), x.data(), out.data());
+          return out;
+        },
+        Eigen::VectorXd(x));
+    EXPECT_LT((num_plus - Eigen::MatrixXd(P)).norm(), 1e-8) << trial;
+    EXPECT_LT((num_minus - Eigen::MatrixXd(M)).norm(), 1e-8) << trial;
+    EXPECT_LT((M * P - Eigen::Matrix4d::Identity()).norm(), 1e-14) << trial;
+
+    // Where the observed line is the projection of the 3D line, sliding an endpoint along the
+    // line leaves residual (7) unchanged: in the 6 raw coordinates the segment's Jacobian has
+    // those two null directions, and the chart's four columns are orthogonal to them. (With a
+    // noisy observation the slide changes the residual only through the angle between the
+    // observed and the projected line: it carries no information about the segment's extent.)
+    LineMeasurement exact = c.m;
+    exact.coefficients =
+        line_through(cam.project(c.T_c_w * c.start_w), cam.project(c.T_c_w * c.end_w));
+    LineSegmentError cost(cam, exact);
+    double pose[7];
+    pose_to_block(c.T_c_w, pose);
+    Eigen::Matrix<double, 2, 7, Eigen::RowMajor> J_pose;
+    Eigen::Matrix<double, 2, 6, Eigen::RowMajor> J_segment;
+    const double* params[2] = {pose, x.data()};
+    double* jac[2] = {J_pose.data(), J_segment.data()};
+    Eigen::Vector2d r;
+    ASSERT_TRUE(cost.Evaluate(params, r.data(), jac));
+    const Eigen::Vector3d d = (c.end_w - c.start_w).normalized();
+    Eigen::Matrix<double, 6, 2> slide = Eigen::Matrix<double, 6, 2>::Zero();
+    slide.block<3, 1>(0, 0) = d;
+    slide.block<3, 1>(3, 1) = d;
+    EXPECT_LT((J_segment * slide).norm(), 1e-9 * J_segment.norm()) << trial;
+    EXPECT_LT((P.transpose() * slide).norm(), 1e-14) << trial;
+    // The residual's Jacobian in the chart keeps what the raw one constrains: each row (one
+    // endpoint) is as large as before.
+    const Eigen::Matrix<double, 2, 4> J_chart = J_segment * P;
+    for (int k = 0; k < 2; ++k)
+      EXPECT_NEAR(J_chart.row(k).norm(), J_segment.row(k).norm(), 1e-9 * J_segment.norm());
+  }
+}
+
 TEST(PoseOnlyLineError, MatchesFullResidualAndNumeric) {
   std::mt19937 rng(11);
   const PinholeCamera cam = test::make_camera();

@@ -5,6 +5,7 @@
 // Whitened by sqrt(information). Analytic Jacobians with respect to the pose block (7, see
 // se3_manifold.hpp) and the two endpoint blocks.
 
+#include <ceres/manifold.h>
 #include <ceres/sized_cost_function.h>
 
 #include "mcslam/core/camera.hpp"
@@ -43,6 +44,24 @@ class LineSegmentError final : public ceres::SizedCostFunction<2, 7, 6> {
 
  private:
   LineReprojectionError full_;
+};
+
+/// The update of a segment block (start | end, 6) in bundle adjustment: each endpoint moves only
+/// across the segment's current direction d, x + delta = [s + B delta_s ; e + B delta_e] with B an
+/// orthonormal basis of the plane orthogonal to d (tangent size 4, the degrees of freedom of a 3D
+/// line). Residual (7) does not change when an endpoint slides along its line, so with all 6
+/// coordinates free the normal equations are singular in two directions per line (only the
+/// solver's damping keeps them regular) and the endpoints drift along the line. Here the
+/// segment's extent stays where the map put it. Minus(y, x) is the inverse of Plus for the y that
+/// Plus reaches from x (the component of y - x along d is dropped).
+class SegmentManifold final : public ceres::Manifold {
+ public:
+  int AmbientSize() const override { return 6; }
+  int TangentSize() const override { return 4; }
+  bool Plus(const double* x, const double* delta, double* x_plus_delta) const override;
+  bool PlusJacobian(const double* x, double* jacobian) const override;
+  bool Minus(const double* y, const double* x, double* y_minus_x) const override;
+  bool MinusJacobian(const double* x, double* jacobian) const override;
 };
 
 /// The same residual with the endpoints held fixed (pose-only optimisation).
