@@ -1,6 +1,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <functional>
 #include <random>
 #include <utility>
 
@@ -77,6 +78,32 @@ Eigen::Vector4d make_plane(const Eigen::Vector3d& n, double d) {
 std::pair<double, double> pose_error(const SE3& estimate, const SE3& truth) {
   const Vector6d e = (estimate * truth.inverse()).log();
   return {e.tail<3>().norm(), e.head<3>().norm()};
+}
+
+// Observations by pose k (at T_c_w) of every point (with depth) and every line, with `noise()`
+// pixels added to each projected point and line endpoint.
+void observe_all(const PinholeCamera& cam, const SE3& T_c_w, int k,
+                 const std::vector<Eigen::Vector3d>& points,
+                 const std::vector<BundleAdjustmentProblem::Line>& lines,
+                 const std::function<Eigen::Vector2d()>& noise, BundleAdjustmentProblem& problem) {
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const Eigen::Vector3d p_c = T_c_w * points[i];
+    BundleAdjustmentProblem::Observation obs;
+    obs.pose = k;
+    obs.point = static_cast<int>(i);
+    obs.measurement.uv = cam.project(p_c) + noise();
+    obs.measurement.u_right = cam.right_u(obs.measurement.uv.x(), p_c.z());
+    obs.measurement.with_depth = true;
+    problem.observations.push_back(obs);
+  }
+  for (std::size_t i = 0; i < lines.size(); ++i) {
+    BundleAdjustmentProblem::LineObservation obs;
+    obs.pose = k;
+    obs.line = static_cast<int>(i);
+    obs.measurement.coefficients = line_through(cam.project(T_c_w * lines[i].start) + noise(),
+                                                cam.project(T_c_w * lines[i].end) + noise());
+    problem.line_observations.push_back(obs);
+  }
 }
 
 const SE3& test_truth() {
@@ -355,25 +382,8 @@ TEST(BundleAdjustment, PointsLinesAndPlanesConvergeToTruth) {
 
   for (int k = 0; k < 2; ++k) {
     const SE3& T = truth_poses[static_cast<std::size_t>(k)];
-    for (int i = 0; i < 30; ++i) {
-      const Eigen::Vector3d p_c = T * truth_points[static_cast<std::size_t>(i)];
-      BundleAdjustmentProblem::Observation obs;
-      obs.pose = k;
-      obs.point = i;
-      obs.measurement.uv = cam.project(p_c);
-      obs.measurement.u_right = cam.right_u(obs.measurement.uv.x(), p_c.z());
-      obs.measurement.with_depth = true;
-      problem.observations.push_back(obs);
-    }
-    for (int i = 0; i < 12; ++i) {
-      const auto& line = truth_lines[static_cast<std::size_t>(i)];
-      BundleAdjustmentProblem::LineObservation obs;
-      obs.pose = k;
-      obs.line = i;
-      obs.measurement.coefficients =
-          line_through(cam.project(T * line.start), cam.project(T * line.end));
-      problem.line_observations.push_back(obs);
-    }
+    observe_all(
+        cam, T, k, truth_points, truth_lines, [] { return Eigen::Vector2d::Zero(); }, problem);
     for (int i = 0; i < 3; ++i) {
       BundleAdjustmentProblem::PlaneObservation obs;
       obs.pose = k;
@@ -447,29 +457,10 @@ TEST(BundleAdjustment, TheRefinementConvergesWithNoisyLines) {
   for (const auto& l : lines)
     problem.lines.push_back({l.start + Eigen::Vector3d(pos(rng), pos(rng), pos(rng)),
                              l.end + Eigen::Vector3d(pos(rng), pos(rng), pos(rng))});
-  for (int k = 0; k < 4; ++k) {
-    const SE3& T = truth[static_cast<std::size_t>(k)];
-    for (int i = 0; i < 40; ++i) {
-      const Eigen::Vector3d p_c = T * points[static_cast<std::size_t>(i)];
-      BundleAdjustmentProblem::Observation obs;
-      obs.pose = k;
-      obs.point = i;
-      obs.measurement.uv = cam.project(p_c) + Eigen::Vector2d(pixel(rng), pixel(rng));
-      obs.measurement.u_right = cam.right_u(obs.measurement.uv.x(), p_c.z());
-      obs.measurement.with_depth = true;
-      problem.observations.push_back(obs);
-    }
-    for (int i = 0; i < 20; ++i) {
-      const auto& line = lines[static_cast<std::size_t>(i)];
-      BundleAdjustmentProblem::LineObservation obs;
-      obs.pose = k;
-      obs.line = i;
-      obs.measurement.coefficients =
-          line_through(cam.project(T * line.start) + Eigen::Vector2d(pixel(rng), pixel(rng)),
-                       cam.project(T * line.end) + Eigen::Vector2d(pixel(rng), pixel(rng)));
-      problem.line_observations.push_back(obs);
-    }
-  }
+  for (int k = 0; k < 4; ++k)
+    observe_all(
+        cam, truth[static_cast<std::size_t>(k)], k, points, lines,
+        [&] { return Eigen::Vector2d(pixel(rng), pixel(rng)); }, problem);
   BundleAdjustmentOptions options;
   options.robust_iterations = 5;
   options.refine_iterations = 50;
