@@ -126,12 +126,12 @@ BundleAdjustmentResult bundle_adjust(const PinholeCamera& camera, BundleAdjustme
                                        robust ? &huber_mono : nullptr, pose, point);
       }
     }
-    // A line's endpoints can slide along the line without changing residual (7). The robust
-    // stage leaves them free to (its damped steps keep the normal equations regular); the
-    // refinement moves them only across the line (SegmentManifold, set below), which is where
-    // that freedom kept the solver busy: it used all its iterations sliding endpoints, and now
-    // converges in a median 4. Pinning them in the robust stage too was measured worse on the
-    // synthetic crowds (the undetected person 0.0113 -> 0.0177 m, see docs/crowd.md).
+    // A line's endpoints can slide along the line with (almost) no change of residual (7). The
+    // robust stage leaves them free to slide (its damped steps keep the normal equations
+    // regular); the refinement moves them only across the line (SegmentManifold, set below).
+    // With that freedom the refinement ran to its limit of iterations on freiburg1_rpy (a
+    // median of 10 in Ceres's count); without it, a median of 3. Pinning them in the robust stage too was measured worse on the synthetic
+    // crowds (the undetected person 0.0113 -> 0.0177 m; see docs/crowd.md).
     for (std::size_t k = 0; k < problem.line_observations.size(); ++k) {
       if (!result.line_inlier[k]) continue;
       const auto& obs = problem.line_observations[k];

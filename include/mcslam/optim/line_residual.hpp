@@ -49,11 +49,12 @@ class LineSegmentError final : public ceres::SizedCostFunction<2, 7, 6> {
 /// The update of a segment block (start | end, 6) in bundle adjustment: each endpoint moves only
 /// across the segment's current direction d, x + delta = [s + B delta_s ; e + B delta_e] with B an
 /// orthonormal basis of the plane orthogonal to d (tangent size 4, the degrees of freedom of a 3D
-/// line). Residual (7) does not change when an endpoint slides along its line, so with all 6
-/// coordinates free the normal equations are singular in two directions per line (only the
-/// solver's damping keeps them regular) and the endpoints drift along the line. Here the
-/// segment's extent stays where the map put it. Minus(y, x) is the inverse of Plus for the y that
-/// Plus reaches from x (the component of y - x along d is dropped).
+/// line). Residual (7) hardly changes when an endpoint slides along its line (only through the
+/// noise: the angle between the observed and the projected line), so with all 6 coordinates free
+/// the normal equations are nearly singular in two directions per line and the solver keeps
+/// moving the endpoints along it. Here the segment's extent stays where the map put it.
+/// Minus(y, x) is the inverse of Plus for the y that Plus reaches from x (the component of y - x
+/// along d is dropped). Bundle adjustment uses it in its refinement stage.
 class SegmentManifold final : public ceres::Manifold {
  public:
   int AmbientSize() const override { return 6; }
