@@ -130,8 +130,9 @@ BundleAdjustmentResult bundle_adjust(const PinholeCamera& camera, BundleAdjustme
     // robust stage leaves them free to slide (its damped steps keep the normal equations
     // regular); the refinement moves them only across the line (SegmentManifold, set below).
     // With that freedom the refinement ran to its limit of iterations on freiburg1_rpy (a
-    // median of 10 in Ceres's count); without it, a median of 3. Pinning them in the robust stage too was measured worse on the synthetic
-    // crowds (the undetected person 0.0113 -> 0.0177 m; see docs/crowd.md).
+    // median of 10 in Ceres's count); without it, a median of 3. Pinning them in the robust
+    // stage too was measured worse on the synthetic crowds (the undetected person 0.0113 ->
+    // 0.0177 m; see docs/crowd.md).
     for (std::size_t k = 0; k < problem.line_observations.size(); ++k) {
       if (!result.line_inlier[k]) continue;
       const auto& obs = problem.line_observations[k];
