@@ -6,6 +6,7 @@
 #include <random>
 
 #include "mcslam/optim/se3_manifold.hpp"
+#include "support/manifold_diff.hpp"
 #include "support/numeric_diff.hpp"
 #include "support/random_geometry.hpp"
 #include "support/test_camera.hpp"
@@ -193,20 +194,8 @@ TEST(SegmentManifold, JacobiansMatchNumericAndRemoveTheSlidingOfTheEndpoints) {
     Eigen::Matrix<double, 4, 6, Eigen::RowMajor> M;
     ASSERT_TRUE(manifold.PlusJacobian(x.data(), P.data()));
     ASSERT_TRUE(manifold.MinusJacobian(x.data(), M.data()));
-    const Eigen::MatrixXd num_plus = test::numeric_jacobian(
-        [&](const Eigen::VectorXd& delta) {
-          Eigen::VectorXd out(6);
-          manifold.Plus(x.data(), delta.data(), out.data());
-          return out;
-        },
-        Eigen::VectorXd::Zero(4));
-    const Eigen::MatrixXd num_minus = test::numeric_jacobian(
-        [&](const Eigen::VectorXd& y) {
-          Eigen::VectorXd out(4);
-          manifold.Minus(y.data(), x.data(), out.data());
-          return out;
-        },
-        Eigen::VectorXd(x));
+    const Eigen::MatrixXd num_plus = test::numeric_plus_jacobian(manifold, x.data());
+    const Eigen::MatrixXd num_minus = test::numeric_minus_jacobian(manifold, x.data());
     EXPECT_LT((num_plus - Eigen::MatrixXd(P)).norm(), 1e-8) << trial;
     EXPECT_LT((num_minus - Eigen::MatrixXd(M)).norm(), 1e-8) << trial;
     EXPECT_LT((M * P - Eigen::Matrix4d::Identity()).norm(), 1e-14) << trial;

@@ -8,6 +8,7 @@
 
 #include "mcslam/core/se3.hpp"
 #include "mcslam/optim/se3_manifold.hpp"
+#include "support/manifold_diff.hpp"
 #include "support/numeric_diff.hpp"
 #include "support/random_geometry.hpp"
 
@@ -164,21 +165,9 @@ TEST(PlaneManifold, JacobiansMatchNumeric) {
     Eigen::Matrix<double, 3, 4, Eigen::RowMajor> M;
     ASSERT_TRUE(manifold.PlusJacobian(x.data(), P.data()));
     ASSERT_TRUE(manifold.MinusJacobian(x.data(), M.data()));
-    const Eigen::MatrixXd num_plus = test::numeric_jacobian(
-        [&](const Eigen::VectorXd& delta) {
-          Eigen::VectorXd out(4);
-          manifold.Plus(x.data(), delta.data(), out.data());
-          return out;
-        },
-        Eigen::VectorXd::Zero(3));
+    const Eigen::MatrixXd num_plus = test::numeric_plus_jacobian(manifold, x.data());
     // d Minus(y, x) / d y at y = x, perturbing the 4 raw doubles of y.
-    const Eigen::MatrixXd num_minus = test::numeric_jacobian(
-        [&](const Eigen::VectorXd& y) {
-          Eigen::VectorXd out(3);
-          manifold.Minus(y.data(), x.data(), out.data());
-          return out;
-        },
-        x);
+    const Eigen::MatrixXd num_minus = test::numeric_minus_jacobian(manifold, x.data());
     EXPECT_LT((num_plus - Eigen::MatrixXd(P)).norm(), 1e-8) << i;
     EXPECT_LT((num_minus - Eigen::MatrixXd(M)).norm(), 1e-6) << i;
     EXPECT_LT((M * P - Eigen::Matrix3d::Identity()).norm(), 1e-12);
