@@ -25,6 +25,11 @@ bool RunControl::paused() const {
   return paused_;
 }
 
+bool RunControl::held() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return held_;
+}
+
 void RunControl::request_localize(bool on) {
   std::lock_guard<std::mutex> lock(mutex_);
   localize_requested_ = on;
@@ -41,7 +46,9 @@ double RunControl::wait_while_paused(const std::function<bool()>& stop) {
   std::unique_lock<std::mutex> lock(mutex_);
   if (!paused_) return 0.0;
   Stopwatch watch;
+  held_ = true;
   while (paused_ && !(stop && stop())) changed_.wait_for(lock, std::chrono::milliseconds(100));
+  held_ = false;
   const double ms = watch.elapsed_ms();
   paused_ms_ += ms;
   return ms;

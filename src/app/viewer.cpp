@@ -260,6 +260,7 @@ std::string Viewer::stats_json() {
                       {"keyframes_inserted", keyframes_},
                       {"map_points", map_points_},
                       {"paused", control_.paused()},
+                      {"held", control_.held()},
                       {"localize", control_.localize_requested()},
                       {"finished", finished_},
                       {"frames_sent", frames_sent_.load()},

@@ -106,12 +106,12 @@ try {
 
   // Pause stops the frame counter; resume restarts it.
   await page.click('button[data-control=pause]');
-  await page.waitForFunction(() => window.mcslamViewer.lastStats && window.mcslamViewer.lastStats.paused, null, { timeout: 10_000 }).catch(() => {});
-  await sleep(700);  // frames already on their way
+  // The frame in flight when the pause arrives finishes first: "held" says the loop waits.
+  await page.waitForFunction(() => window.mcslamViewer.lastStats && window.mcslamViewer.lastStats.held, null, { timeout: 30_000 }).catch(() => {});
   const pausedAt = (await viewer()).lastStats.done;
   await sleep(2000);
   v = await viewer();
-  check(v.lastStats.paused && v.lastStats.done === pausedAt, `pause stops the frame counter (${pausedAt} -> ${v.lastStats.done})`);
+  check(v.lastStats.paused && v.lastStats.held && v.lastStats.done === pausedAt, `pause stops the frame counter (${pausedAt} -> ${v.lastStats.done})`);
   const modeText = await page.textContent('[data-figure=mode]');
   check(modeText === 'paused', `the page says paused (${modeText})`);
   await page.click('button[data-control=pause]');

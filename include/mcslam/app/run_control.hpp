@@ -20,7 +20,11 @@ class RunControl {
       : localize_requested_(localize), localize_applied_(localize) {}
   void pause();
   void resume();
+  /// A pause was asked for and not yet resumed.
   bool paused() const;
+  /// The frame loop is waiting between two frames: no frame is in flight. After pause(), the
+  /// frame being processed finishes first; only then does held() turn true.
+  bool held() const;
   /// Asks for localisation only (true) or mapping (false) from the next frame on.
   void request_localize(bool on);
   /// The state asked for last (what the loop applies next, or has applied).
@@ -42,6 +46,7 @@ class RunControl {
   mutable std::mutex mutex_;
   std::condition_variable changed_;
   bool paused_ = false;
+  bool held_ = false;
   bool localize_requested_ = false;
   bool localize_applied_ = false;
   int pauses_ = 0;

@@ -189,7 +189,7 @@ function showStats(s) {
   figureValues.dynamic.textContent = String(s.dynamic_objects);
   figureValues.constrained.textContent = String(s.constrained_objects);
   figureValues.keyframes.textContent = String(s.keyframes_inserted);
-  figureValues.mode.textContent = s.finished ? 'finished' : s.paused ? 'paused' : s.localize ? 'localisation only' : 'mapping';
+  figureValues.mode.textContent = s.finished ? 'finished' : s.paused ? (s.held ? 'paused' : 'pausing') : s.localize ? 'localisation only' : 'mapping';
   pauseButton.textContent = s.paused ? 'Resume' : 'Pause';
   pauseButton.setAttribute('aria-pressed', String(Boolean(s.paused)));
   localizeButton.setAttribute('aria-pressed', String(Boolean(s.localize)));
