@@ -204,8 +204,10 @@ TrackingOutcome Tracker::track(const Frame& frame, bool mapper_idle, std::size_t
                                StageTimes* times) {
   // One shared lock for the whole frame: every read sees one state of the map, never a
   // correction half applied (the mapper writes between frames, or waits for this one).
-  const auto map_lock = map_.read_lock();
   Stopwatch watch;
+  const auto map_lock = map_.read_lock();
+  if (times) times->add("map_wait", watch.elapsed_ms());  // while the mapper writes
+  watch.restart();
   follow_map();
   if (state_ == TrackingState::kNotInitialized) {
     TrackingOutcome out = initialize(frame);
