@@ -20,14 +20,25 @@ constexpr double kMinDepth = 1e-6;
 // trial step that moves a good endpoint behind the camera raises the cost and is rejected.
 constexpr double kBehindCameraDistance = 1e4;
 
-// The basis across a segment block's direction (x = start | end). A segment shorter than
-// kMinSegmentLength has no usable direction; it takes the x axis (any basis is a valid chart).
+// A segment shorter than this has no usable direction; it takes the x axis (any basis is a
+// valid chart).
 constexpr double kMinSegmentLength = 1e-9;
-void across_basis(const double* x, Eigen::Vector3d* b1, Eigen::Vector3d* b2) {
+
+// SegmentManifold's chart for a segment block x = start | end: B = diag(b, b), 6x4, where b's
+// two orthonormal columns span the plane orthogonal to the segment's direction. Plus is
+// x + B delta, Minus B^T (y - x); their Jacobians are B and B^T.
+Eigen::Matrix<double, 6, 4> across_basis(const double* x) {
   const Eigen::Vector3d d(x[3] - x[0], x[4] - x[1], x[5] - x[2]);
   const double length = d.norm();
+  Eigen::Vector3d b1, b2;
   tangent_basis(length > kMinSegmentLength ? Eigen::Vector3d(d / length) : Eigen::Vector3d::UnitX(),
-                b1, b2);
+                &b1, &b2);
+  Eigen::Matrix<double, 6, 4> B = Eigen::Matrix<double, 6, 4>::Zero();
+  for (int k = 0; k < 2; ++k) {
+    B.block<3, 1>(3 * k, 2 * k) = b1;
+    B.block<3, 1>(3 * k, 2 * k + 1) = b2;
+  }
+  return B;
 }
 
 }  // namespace
@@ -105,48 +116,29 @@ bool LineSegmentError::Evaluate(double const* const* parameters, double* residua
 }
 
 bool SegmentManifold::Plus(const double* x, const double* delta, double* x_plus_delta) const {
-  Eigen::Vector3d b1, b2;
-  across_basis(x, &b1, &b2);
-  for (int k = 0; k < 2; ++k) {
-    const Eigen::Vector3d moved = delta[2 * k] * b1 + delta[2 * k + 1] * b2;
-    for (int i = 0; i < 3; ++i) x_plus_delta[3 * k + i] = x[3 * k + i] + moved[i];
-  }
+  using Vector6d = Eigen::Matrix<double, 6, 1>;
+  Eigen::Map<Vector6d> out(x_plus_delta);
+  out = Eigen::Map<const Vector6d>(x) + across_basis(x) * Eigen::Map<const Eigen::Vector4d>(delta);
   return true;
 }
 
 bool SegmentManifold::PlusJacobian(const double* x, double* jacobian) const {
-  Eigen::Vector3d b1, b2;
-  across_basis(x, &b1, &b2);
   Eigen::Map<Eigen::Matrix<double, 6, 4, Eigen::RowMajor>> J(jacobian);
-  J.setZero();
-  for (int k = 0; k < 2; ++k) {
-    J.block<3, 1>(3 * k, 2 * k) = b1;
-    J.block<3, 1>(3 * k, 2 * k + 1) = b2;
-  }
+  J = across_basis(x);
   return true;
 }
 
 bool SegmentManifold::Minus(const double* y, const double* x, double* y_minus_x) const {
-  Eigen::Vector3d b1, b2;
-  across_basis(x, &b1, &b2);
-  for (int k = 0; k < 2; ++k) {
-    const Eigen::Vector3d d(y[3 * k] - x[3 * k], y[3 * k + 1] - x[3 * k + 1],
-                            y[3 * k + 2] - x[3 * k + 2]);
-    y_minus_x[2 * k] = b1.dot(d);
-    y_minus_x[2 * k + 1] = b2.dot(d);
-  }
+  using Vector6d = Eigen::Matrix<double, 6, 1>;
+  Eigen::Map<Eigen::Vector4d> out(y_minus_x);
+  out =
+      across_basis(x).transpose() * (Eigen::Map<const Vector6d>(y) - Eigen::Map<const Vector6d>(x));
   return true;
 }
 
 bool SegmentManifold::MinusJacobian(const double* x, double* jacobian) const {
-  Eigen::Vector3d b1, b2;
-  across_basis(x, &b1, &b2);
   Eigen::Map<Eigen::Matrix<double, 4, 6, Eigen::RowMajor>> J(jacobian);
-  J.setZero();
-  for (int k = 0; k < 2; ++k) {
-    J.block<1, 3>(2 * k, 3 * k) = b1.transpose();
-    J.block<1, 3>(2 * k + 1, 3 * k) = b2.transpose();
-  }
+  J = across_basis(x).transpose();
   return true;
 }
 
