@@ -68,13 +68,12 @@ try {
   await page.waitForFunction(() => window.mcslamViewer.framesReceived >= 3, null, { timeout: 30_000 }).catch(() => {});
   let v = await viewer();
   check(v.framesReceived >= 3, `frames arrive (${v.framesReceived})`);
-  // The newest frame may still be decoding (a loaded machine): wait for one that is done.
-  const frameDecoded = () => {
+  // The page shows a frame only once it is decoded: the image in the panel is always complete.
+  await page.waitForFunction(() => window.mcslamViewer.framesShown >= 1, null, { timeout: 30_000 }).catch(() => {});
+  const decoded = await page.evaluate(() => {
     const img = document.querySelector('img[data-view=frame]');
     return img && img.complete ? img.naturalWidth : 0;
-  };
-  await page.waitForFunction(frameDecoded, null, { timeout: 10_000 }).catch(() => {});
-  const decoded = await page.evaluate(frameDecoded);
+  });
   check(decoded > 0, `the frame decodes (width ${decoded})`);
 
   // The map grows and the trajectory is drawn.

@@ -12,6 +12,7 @@ import { LiveMap } from './live-map.js';
 
 const state = {
   framesReceived: 0,
+  framesShown: 0,
   mapsReceived: 0,
   statsReceived: 0,
   lastStats: null,
@@ -19,7 +20,7 @@ const state = {
   trajectoryPoints: 0,
   connected: false,
 };
-// Read by the browser test (tests/app/viewer_browser.mjs).
+// Read by the browser test (web/viewer/check-viewer.mjs, run by tests/app/viewer_browser.sh).
 window.mcslamViewer = state;
 
 document.head.append(h('style', {}, css));
@@ -34,7 +35,7 @@ const header = h('header', {},
   h('h1', {}, 'mcslam live'), status, pauseButton, localizeButton,
   h('label', { class: 'control' }, followBox, ' Follow camera'));
 
-const frameImage = h('img', { alt: 'current frame with its overlay', dataset: { view: 'frame' } });
+let frameImage = h('img', { alt: 'current frame with its overlay', dataset: { view: 'frame' } });
 const FIGURES = [
   ['frame', 'Frame'], ['state', 'State'], ['fps', 'Frames / s'], ['tracking', 'Tracking ms'],
   ['detector', 'Detector passes / s'], ['box-age', 'Box age (frames)'], ['dynamic', 'Dynamic objects'],
@@ -125,16 +126,38 @@ function onText(message) {
   }
 }
 
-let frameUrl = null;
+// A frame replaces the one shown only once it is decoded, so the panel never shows a half-loaded
+// image. A frame that arrives while another decodes waits as the newest one (an older waiting
+// frame is dropped): on a loaded machine the panel shows fewer frames, never none.
+let decoding = false;
+let waiting = null;
+function showFrame(frame) {
+  if (decoding) {
+    if (waiting) URL.revokeObjectURL(waiting.url);
+    waiting = frame;
+    return;
+  }
+  decoding = true;
+  const next = h('img', { alt: frameImage.alt, dataset: { view: 'frame', frameId: String(frame.id) } });
+  next.src = frame.url;
+  next.decode().then(() => {
+    URL.revokeObjectURL(frameImage.src);
+    frameImage.replaceWith(next);
+    frameImage = next;
+    state.framesShown += 1;
+  }, () => URL.revokeObjectURL(frame.url)).finally(() => {
+    decoding = false;
+    const after = waiting;
+    waiting = null;
+    if (after) showFrame(after);
+  });
+}
+
 function onBinary(buffer) {
   const type = new Uint8Array(buffer, 0, 1)[0];
   if (type === 1) {
     const url = URL.createObjectURL(new Blob([buffer.slice(8)], { type: 'image/jpeg' }));
-    const previous = frameUrl;
-    frameUrl = url;
-    frameImage.onload = () => { if (previous) URL.revokeObjectURL(previous); };
-    frameImage.src = url;
-    frameImage.dataset.frameId = String(new DataView(buffer).getUint32(4, true));
+    showFrame({ url, id: new DataView(buffer).getUint32(4, true) });
     state.framesReceived += 1;
   } else if (type === 2) {
     const decoded = decodeMap(buffer);
