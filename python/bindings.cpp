@@ -215,6 +215,8 @@ PYBIND11_MODULE(_mcslam, m) {
           py::arg("depth_timestamp") = py::none(), py::arg("rgb_order") = false)
       .def("finish", &mcslam::System::finish, py::call_guard<py::gil_scoped_release>())
       .def("trajectory", [](const mcslam::System& s) { return trajectory_array(s.trajectory()); })
+      .def("unsmoothed_trajectory",
+           [](const mcslam::System& s) { return trajectory_array(s.unsmoothed_trajectory()); })
       .def("keyframe_trajectory",
            [](const mcslam::System& s) { return trajectory_array(s.keyframe_trajectory()); })
       .def("online_trajectory",

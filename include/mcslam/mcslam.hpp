@@ -145,8 +145,11 @@ class System {
   /// the background threads.
   void finish();
 
-  /// Tracked frames at their final (refined) poses.
+  /// Tracked frames at their final (refined) poses, positions smoothed with a motion prior
+  /// (setting trajectory.smoothing; optim::smooth_trajectory).
   Trajectory trajectory() const;
+  /// The same poses before smoothing.
+  Trajectory unsmoothed_trajectory() const;
   Trajectory keyframe_trajectory() const;
   /// Tracked frames at the poses tracking gave them at the time.
   Trajectory online_trajectory() const;

@@ -116,7 +116,8 @@ class System(_System):
     """The SLAM system. System(camera, settings=None, **options): see make_settings().
 
     process(rgb, depth, timestamp, depth_timestamp=None, rgb_order=False) -> Frame
-    finish(); trajectory(), keyframe_trajectory(), online_trajectory() -> N x 8 arrays;
+    finish(); trajectory(), unsmoothed_trajectory(), keyframe_trajectory(),
+    online_trajectory() -> N x 8 arrays;
     map() -> {"points": N x 3, "lines": N x 6 (two endpoints), "planes": N x 4 (n, d),
     "keyframes": N x 8}; save_session(path).
     """

@@ -235,6 +235,7 @@ FrameReport System::process(const cv::Mat& rgb, const cv::Mat& depth, double tim
 
 void System::finish() { system_->finish(); }
 Trajectory System::trajectory() const { return system_->trajectory(); }
+Trajectory System::unsmoothed_trajectory() const { return system_->unsmoothed_trajectory(); }
 Trajectory System::keyframe_trajectory() const { return system_->keyframe_trajectory(); }
 Trajectory System::online_trajectory() const { return system_->online_trajectory(); }
 

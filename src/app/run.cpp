@@ -485,12 +485,15 @@ nlohmann::json run_frames(const RunRequest& request, const std::string& source_p
   const std::size_t processed = done;
 
   // Outputs.
-  const Trajectory trajectory = system.trajectory();
+  optim::TrajectorySmoothingReport smoothing;
+  const Trajectory trajectory = system.trajectory(&smoothing);
+  const Trajectory unsmoothed = system.unsmoothed_trajectory();
   const std::string note = interrupted
                                ? "interrupted after frame " + std::to_string(offered) + " of " +
                                      std::to_string(total) + " (stopped on request)"
                                : std::string();
   io::write_tum_trajectory((out / "trajectory.txt").string(), trajectory, note);
+  io::write_tum_trajectory((out / "trajectory_unsmoothed.txt").string(), unsmoothed, note);
   io::write_tum_trajectory((out / "trajectory_online.txt").string(), system.online_trajectory(),
                            note);
   io::write_file_atomic((out / "keyframes.txt").string(),
@@ -649,11 +652,21 @@ nlohmann::json run_frames(const RunRequest& request, const std::string& source_p
   }
   summary["stages"] = stages;
   summary["warnings"] = warnings;
+  summary["trajectory_smoothing"] = {
+      {"applied", smoothing.applied},
+      {"position_noise_m", smoothing.position_noise},
+      {"segments", smoothing.segments},
+      {"downweighted", smoothing.downweighted},
+      {"rms_change_m", smoothing.rms_change},
+      {"acceleration_density", config.options.trajectory.acceleration_density}};
   if (groundtruth && !trajectory.empty()) {
     try {
       const eval::EvalReport report = eval::evaluate(*groundtruth, trajectory);
       summary["eval"] = eval::to_json(report);
       summary["ate_rmse_m"] = report.ate.translation.rmse;
+      if (smoothing.applied)
+        summary["trajectory_smoothing"]["unsmoothed_ate_rmse_m"] =
+            eval::evaluate(*groundtruth, unsmoothed).ate.translation.rmse;
     } catch (const InputError& e) {
       summary["eval_error"] = e.what();
     }
@@ -874,10 +887,14 @@ std::string summary_text(const nlohmann::json& s) {
       o << "\n";
     }
   }
-  if (s.contains("ate_rmse_m"))
+  if (s.contains("ate_rmse_m")) {
     o << "ATE RMSE " << std::setprecision(4) << s["ate_rmse_m"].get<double>() << " m over "
-      << s["eval"]["matched"].get<int>() << " poses\n";
-  else if (s.contains("eval_error"))
+      << s["eval"]["matched"].get<int>() << " poses";
+    const nlohmann::json smoothing = s.value("trajectory_smoothing", nlohmann::json::object());
+    if (smoothing.contains("unsmoothed_ate_rmse_m"))
+      o << " (unsmoothed " << smoothing["unsmoothed_ate_rmse_m"].get<double>() << " m)";
+    o << "\n";
+  } else if (s.contains("eval_error"))
     o << "no ATE: " << s["eval_error"].get<std::string>() << "\n";
   return o.str();
 }

@@ -94,6 +94,7 @@ std::optional<std::string> SystemOptions::check() const {
   if (auto e = tracker.check()) return e;
   if (auto e = place.check()) return e;
   if (auto e = readout.check()) return e;
+  if (auto e = trajectory.check()) return e;
   return mapper.check();
 }
 

@@ -346,12 +346,26 @@ SolverStatistics System::solver_statistics() const {
   return s;
 }
 
-Trajectory System::trajectory() const {
+Trajectory System::trajectory(optim::TrajectorySmoothingReport* report) const {
+  std::vector<std::size_t> breaks;
+  const Trajectory poses = corrected_trajectory(&breaks);
+  return optim::smooth_trajectory(poses, options_.trajectory, report, breaks);
+}
+
+Trajectory System::unsmoothed_trajectory() const { return corrected_trajectory(nullptr); }
+
+Trajectory System::corrected_trajectory(std::vector<std::size_t>* after_loss) const {
   Trajectory out;
   const std::vector<FrameRecord> frames = records();
   auto lock = map_->read_lock();
+  bool lost = false;
   for (const FrameRecord& r : frames) {
-    if (!r.tracked) continue;
+    if (!r.tracked) {
+      lost = !out.empty();
+      continue;
+    }
+    if (lost && after_loss) after_loss->push_back(out.size());
+    lost = false;
     const auto T_ref_w = map_->keyframe_pose_T_c_w(r.reference);
     const SE3 T_c_w = T_ref_w ? r.T_c_ref * (*T_ref_w) : r.T_c_w;
     out.push_back({r.timestamp, T_c_w.inverse()});

@@ -9,6 +9,7 @@
 #include "mcslam/optim/bundle_adjustment.hpp"
 #include "mcslam/optim/pose_graph.hpp"
 #include "mcslam/optim/pose_optimizer.hpp"
+#include "mcslam/optim/trajectory_smoothing.hpp"
 #include "mcslam/slam/dynamics.hpp"
 #include "mcslam/slam/readout.hpp"
 
@@ -199,6 +200,9 @@ struct SystemOptions {
   MapperOptions mapper;
   PlaceOptions place;
   ReadoutOptions readout;
+  /// The final trajectory's positions smoothed with a motion prior (System::trajectory,
+  /// trajectory.txt); the online poses are never smoothed.
+  optim::TrajectorySmoothingOptions trajectory;
   /// With a map made earlier (System's initial map): track against it without changing it (no
   /// keyframes, no mapping, no loop closing). Set by `mcslam run --localize`.
   bool localize = false;

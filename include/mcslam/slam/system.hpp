@@ -144,8 +144,12 @@ class System {
   /// Lets the mapper finish its queue. Call before reading the final trajectory.
   void finish();
 
-  /// Tracked frames, each placed relative to its reference keyframe's final (refined) pose.
-  Trajectory trajectory() const;
+  /// Tracked frames, each placed relative to its reference keyframe's final (refined) pose,
+  /// positions smoothed as options().trajectory says (optim::smooth_trajectory); `report`, when
+  /// given, receives what the smoothing did.
+  Trajectory trajectory(optim::TrajectorySmoothingReport* report = nullptr) const;
+  /// The same poses before smoothing.
+  Trajectory unsmoothed_trajectory() const;
   Trajectory keyframe_trajectory() const;
   /// Tracked frames at the poses tracking gave them at the time (what a robot saw online).
   Trajectory online_trajectory() const;
@@ -172,6 +176,9 @@ class System {
   void set_localize(bool localize);
 
  private:
+  /// The tracked frames relative to their reference keyframes; `after_loss`, when given,
+  /// receives the indices of the poses that follow untracked frames.
+  Trajectory corrected_trajectory(std::vector<std::size_t>* after_loss) const;
   struct FrameRecord {
     double timestamp = 0.0;
     bool tracked = false;
