@@ -221,6 +221,7 @@ void write_run(const TempDir& dir, const std::string& relative, int tracked_fram
                                   {"tracked_frames", tracked_frames},
                                   {"tracked_ratio", tracked_frames / 30.0},
                                   {"frames_per_second", 25.0},
+                                  {"trajectory_smoothing", {{"unsmoothed_ate_rmse_m", 0.04}}},
                                   {"stages",
                                    {{"tracking_total", {{"median_ms", 30.0}, {"mean_ms", 31.0}}},
                                     {"image_load", {{"median_ms", 5.0}}},
@@ -251,6 +252,7 @@ TEST(BenchResults, ScoresARunFolderWithTheEvalCode) {
   ASSERT_TRUE(r.ate_rmse_m);
   EXPECT_NEAR(*r.ate_rmse_m, eval::evaluate(gt, est).ate.translation.rmse, 1e-12);
   EXPECT_GT(*r.ate_rmse_m, 0.005);
+  EXPECT_EQ(r.unsmoothed_ate_rmse_m, 0.04);  // as the run's summary gives it
   EXPECT_TRUE(r.rpe_trans_m && r.rpe_rot_deg);
   EXPECT_DOUBLE_EQ(*r.fps, 25.0);
   EXPECT_DOUBLE_EQ(*r.tracking_ms, 30.0);
@@ -301,6 +303,7 @@ RunRecord record(Mode mode, int index, std::optional<double> ate, std::optional<
   r.index = index;
   r.ok = true;
   r.ate_rmse_m = ate;
+  if (ate) r.unsmoothed_ate_rmse_m = 2.0 * *ate;
   r.rpe_trans_m = ate;
   r.rpe_rot_deg = 0.5;
   r.tracked_ratio = 1.0;
@@ -346,6 +349,7 @@ TEST(BenchResults, SummaryTakesAccuracyFromSequentialAndSpeedFromThreadedRuns) {
   EXPECT_DOUBLE_EQ(full.ate->min, 0.0103);
   EXPECT_DOUBLE_EQ(full.ate->max, 0.0111);
   EXPECT_EQ(full.ate->n, 3);
+  EXPECT_DOUBLE_EQ(full.ate_unsmoothed->median, 0.021);
   EXPECT_DOUBLE_EQ(full.ate_threaded->median, 0.025);  // the failed run is left out
   EXPECT_EQ(full.ate_threaded->n, 2);
   EXPECT_DOUBLE_EQ(full.fps->median, 25.5);
@@ -406,8 +410,10 @@ TEST(BenchResults, MarkdownTablesShowSpreadsSkipsFailuresAndPublishedFigures) {
   EXPECT_TRUE(contains(md, "`mcslam bench data --runs 3 --output out`"));
   EXPECT_TRUE(contains(md, "wall time 10.0 min"));
   EXPECT_TRUE(contains(md, "## rgbd_dataset_freiburg3_walking_xyz"));
-  EXPECT_TRUE(contains(md, "| points | 0.3000 | 0.3200 |"));
-  EXPECT_TRUE(contains(md, "| 0.0105 (0.0103–0.0111) | 0.0250 (0.0200–0.0300) [2 of 3 runs] |"))
+  EXPECT_TRUE(contains(md, "| points | 0.3000 | 0.6000 | 0.3200 |"));
+  EXPECT_TRUE(contains(md,
+                       "| 0.0105 (0.0103–0.0111) | 0.0210 (0.0206–0.0222) | 0.0250 (0.0200–0.0300) "
+                       "[2 of 3 runs] |"))
       << md;
   EXPECT_TRUE(contains(md, "| +detection | skipped: no boxes for this sequence |"));
   EXPECT_TRUE(contains(md, "| orb_extract |"));

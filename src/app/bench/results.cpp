@@ -164,6 +164,7 @@ RunRecord score_run(const RunSpec& spec, const std::string& relative_output,
     if (number_at(summary, {"loops", "keyframes_checked"}).value_or(0) > 0)
       r.loop_detection_ms = number_at(summary, {"loops", "detection_median_ms"});
     r.relocalisations = number_at(summary, {"relocalisations"});
+    r.unsmoothed_ate_rmse_m = number_at(summary, {"trajectory_smoothing", "unsmoothed_ate_rmse_m"});
     r.processed_ratio = number_at(summary, {"realtime", "processed_ratio"});
     r.latency_ms = number_at(summary, {"realtime", "latency_median_ms"});
     r.detector_rate_hz = number_at(summary, {"dynamics", "detector_rate_hz"});
@@ -237,6 +238,7 @@ void summarise(ConfigResult& c) {
   };
   c.ate = collect(accuracy, &RunRecord::ate_rmse_m);
   c.ate_threaded = collect(threaded_runs, &RunRecord::ate_rmse_m);
+  c.ate_unsmoothed = collect(accuracy, &RunRecord::unsmoothed_ate_rmse_m);
   c.rpe_trans = collect(accuracy, &RunRecord::rpe_trans_m);
   c.rpe_rot_deg = collect(accuracy, &RunRecord::rpe_rot_deg);
   c.tracked = collect(accuracy, &RunRecord::tracked_ratio);
@@ -332,17 +334,17 @@ std::string markdown(const BenchMeta& meta, const std::vector<SequenceResult>& s
       md << "**Not run:** " << escape_cell(*s.error) << "\n";
       continue;
     }
-    md << "| configuration | ATE RMSE (m) | ATE threaded (m) | RPE trans. 1 s (m) | RPE rot. 1 s "
-          "(°) | tracked | fps | tracking (ms) |\n";
-    md << "|---|---|---|---|---|---|---|---|\n";
+    md << "| configuration | ATE RMSE (m) | unsmoothed (m) | ATE threaded (m) | RPE trans. 1 s (m) "
+          "| RPE rot. 1 s (°) | tracked | fps | tracking (ms) |\n";
+    md << "|---|---|---|---|---|---|---|---|---|\n";
     for (const ConfigResult& c : s.configs) {
       md << "| " << c.config.label;
       if (c.skipped) {
-        md << " | skipped: " << escape_cell(*c.skipped) << " | | | | | | |\n";
+        md << " | skipped: " << escape_cell(*c.skipped) << " | | | | | | | |\n";
         continue;
       }
       const int acc = accuracy_runs(c), spd = speed_runs(c);
-      md << " | " << cell(c.ate, 4, acc) << " | "
+      md << " | " << cell(c.ate, 4, acc) << " | " << cell(c.ate_unsmoothed, 4, acc) << " | "
          << cell(c.ate_threaded, 4, runs_in_mode(c, Mode::kThreaded)) << " | "
          << cell(c.rpe_trans, 4, acc) << " | " << cell(c.rpe_rot_deg, 3, acc) << " | "
          << percent_cell(c.tracked, acc) << " | " << cell(c.fps, 1, spd) << " | "
@@ -463,7 +465,8 @@ std::string markdown(const BenchMeta& meta, const std::vector<SequenceResult>& s
 std::string runs_csv(const std::vector<SequenceResult>& sequences) {
   std::ostringstream csv;
   csv << "sequence,dataset,config,mode,run,ok,error,note,frames,ate_rmse_m,rpe_trans_1s_m,"
-         "rpe_rot_1s_deg,tracked_ratio,fps,tracking_median_ms,dynamics_mean_ms,wall_s,output\n";
+         "rpe_rot_1s_deg,tracked_ratio,fps,tracking_median_ms,dynamics_mean_ms,wall_s,output,"
+         "unsmoothed_ate_rmse_m\n";
   for (const SequenceResult& s : sequences)
     for (const ConfigResult& c : s.configs)
       for (const RunRecord& r : c.runs)
@@ -474,7 +477,7 @@ std::string runs_csv(const std::vector<SequenceResult>& sequences) {
             << csv_number(r.rpe_rot_deg) << ',' << csv_number(r.tracked_ratio) << ','
             << csv_number(r.fps) << ',' << csv_number(r.tracking_ms) << ','
             << csv_number(r.dynamics_ms) << ',' << csv_number(r.wall_s) << ','
-            << csv_field(r.output) << '\n';
+            << csv_field(r.output) << ',' << csv_number(r.unsmoothed_ate_rmse_m) << '\n';
   return csv.str();
 }
 
@@ -491,6 +494,7 @@ nlohmann::json to_json(const RunRecord& r) {
           {"note", optional_text(r.note.empty() ? std::nullopt : std::optional(r.note))},
           {"frames", r.frames},
           {"ate_rmse_m", optional_number(r.ate_rmse_m)},
+          {"unsmoothed_ate_rmse_m", optional_number(r.unsmoothed_ate_rmse_m)},
           {"rpe_trans_m", optional_number(r.rpe_trans_m)},
           {"rpe_rot_deg", optional_number(r.rpe_rot_deg)},
           {"tracked_ratio", optional_number(r.tracked_ratio)},
@@ -532,6 +536,7 @@ nlohmann::json results_json(const BenchMeta& meta, const std::vector<SequenceRes
       js["results"].push_back({{"config", c.config.name},
                                {"skipped", optional_text(c.skipped)},
                                {"ate_rmse_m", to_json(c.ate)},
+                               {"unsmoothed_ate_rmse_m", to_json(c.ate_unsmoothed)},
                                {"ate_rmse_threaded_m", to_json(c.ate_threaded)},
                                {"rpe_trans_m", to_json(c.rpe_trans)},
                                {"rpe_rot_deg", to_json(c.rpe_rot_deg)},

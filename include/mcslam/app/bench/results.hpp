@@ -28,6 +28,8 @@ struct RunRecord {
   double wall_s = 0;
   int frames = 0;
   std::optional<double> ate_rmse_m, rpe_trans_m, rpe_rot_deg;  ///< need ground truth
+  /// ATE of the trajectory before its positions were smoothed (summary.json).
+  std::optional<double> unsmoothed_ate_rmse_m;
   std::optional<double> tracked_ratio, fps, tracking_ms, dynamics_ms;
   /// Place recognition: keyframes in the map, loops verified and accepted, median ms of loop
   /// detection per keyframe and of the relocalisation database query, relocalisations.
@@ -63,7 +65,8 @@ struct ConfigResult {
   /// Accuracy from the sequential runs (all runs when there are none), speed from the threaded
   /// runs (likewise).
   std::optional<Spread> ate, ate_threaded, rpe_trans, rpe_rot_deg, tracked, fps, tracking_ms;
-  std::optional<double> dynamics_ms;  ///< mean per frame, speed runs
+  std::optional<Spread> ate_unsmoothed;  ///< the accuracy runs' ATE before smoothing
+  std::optional<double> dynamics_ms;     ///< mean per frame, speed runs
   /// Place recognition (all runs): medians of RunRecord's figures.
   std::optional<Spread> keyframes, loops_verified, loops_accepted, loop_detection_ms,
       relocalisations, relocalisation_query_ms;
