@@ -42,6 +42,12 @@ def test_process_gives_the_cli_trajectory(python_run, cli_run):
     assert np.max(np.linalg.norm(ours[:, 1:4] - cli[:, 1:4], axis=1)) <= 1e-6
     assert [f.state for f in frames].count("ok") >= 25
     assert frames[-1].state == "ok"
+    # The same poses before their positions were smoothed.
+    raw = system.unsmoothed_trajectory()
+    cli_raw = mcslam.read_trajectory(os.path.join(cli_run, "trajectory_unsmoothed.txt"))
+    assert raw.shape == ours.shape and np.array_equal(raw[:, 0], ours[:, 0])
+    assert np.max(np.linalg.norm(raw[:, 1:4] - cli_raw[:, 1:4], axis=1)) <= 1e-6
+    assert np.array_equal(raw[:, 4:8], ours[:, 4:8])
 
 
 def test_frame_pose_is_a_4x4_rigid_transform(python_run):

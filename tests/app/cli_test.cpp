@@ -172,8 +172,9 @@ TEST(CliRun, WritesAllOutputs) {
   const MainRun& run = main_run();
   ASSERT_EQ(run.result.exit_code, 0) << run.result;
   EXPECT_TRUE(run.result.out.empty()) << "-q prints nothing\n" << run.result;
-  for (const char* name : {"trajectory.txt", "trajectory_online.txt", "keyframes.txt",
-                           "timings.csv", "summary.json", "config.yaml", "map.ply", "map.json"})
+  for (const char* name :
+       {"trajectory.txt", "trajectory_unsmoothed.txt", "trajectory_online.txt", "keyframes.txt",
+        "timings.csv", "summary.json", "config.yaml", "map.ply", "map.json"})
     EXPECT_TRUE(fs::is_regular_file(run.out / name)) << name;
 
   const nlohmann::json summary = read_json(run.out / "summary.json");
@@ -207,6 +208,16 @@ TEST(CliRun, WritesAllOutputs) {
   }
 
   EXPECT_EQ(timestamps_of(run.out / "trajectory_online.txt"), stamps);
+  EXPECT_EQ(timestamps_of(run.out / "trajectory_unsmoothed.txt"), stamps);
+  // The positions were smoothed: the noise was estimated, and the unsmoothed ATE is reported.
+  const nlohmann::json& smoothing = summary["trajectory_smoothing"];
+  EXPECT_TRUE(smoothing["applied"].get<bool>()) << smoothing;
+  EXPECT_GT(smoothing["position_noise_m"].get<double>(), 0.0);
+  EXPECT_EQ(smoothing["segments"].get<int>(), 1);
+  ASSERT_TRUE(smoothing.contains("unsmoothed_ate_rmse_m"));
+  EXPECT_LT(smoothing["unsmoothed_ate_rmse_m"].get<double>(), 0.02);
+  EXPECT_NE(read_file(run.out / "trajectory.txt"),
+            read_file(run.out / "trajectory_unsmoothed.txt"));
   const std::vector<double> keyframes = timestamps_of(run.out / "keyframes.txt");
   EXPECT_GE(keyframes.size(), 1u);
   for (double t : keyframes) EXPECT_EQ(rgb_set.count(t), 1u) << "keyframe timestamp " << t;
@@ -339,6 +350,25 @@ TEST(CliRun, FeatureSwitches) {
               quote((root() / "out_bad_features").string()) + " --features points,curves -q");
   EXPECT_EQ(bad.exit_code, 1) << bad;
   EXPECT_NE(bad.err.find("curves"), std::string::npos) << bad;
+}
+
+TEST(CliRun, SmoothingOffWritesTheUnsmoothedPoses) {
+  const fs::path out = root() / "out_unsmoothed";
+  fs::create_directories(out);
+  const fs::path config = out / "off.yaml";
+  mcslam::test::write_file(config, "trajectory:\n  smoothing: false\n");
+  const CliResult r =
+      run_cli("run " + quote(main_sequence().string()) + " --output " + quote(out.string()) +
+              " --config " + quote(config.string()) + " --sequential -q");
+  ASSERT_EQ(r.exit_code, 0) << r;
+  EXPECT_EQ(read_file(out / "trajectory.txt"), read_file(out / "trajectory_unsmoothed.txt"));
+  const nlohmann::json summary = read_json(out / "summary.json");
+  EXPECT_FALSE(summary["trajectory_smoothing"]["applied"].get<bool>());
+  EXPECT_FALSE(summary["trajectory_smoothing"].contains("unsmoothed_ate_rmse_m"));
+  // The sequential run's unsmoothed poses are those of the run with smoothing on.
+  const MainRun& run = main_run();
+  EXPECT_EQ(read_file(out / "trajectory_unsmoothed.txt"),
+            read_file(run.out / "trajectory_unsmoothed.txt"));
 }
 
 TEST(CliRun, FirstFrameStartsTheRunThere) {
