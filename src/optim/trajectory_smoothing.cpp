@@ -16,6 +16,9 @@ namespace {
 constexpr double kMinNoise = 1e-4;
 /// Median absolute deviation to standard deviation (Gaussian).
 constexpr double kMadToSigma = 1.4826;
+/// Reweighting stops when no weight changes by more than this: the solution then moves by a
+/// thousandth of the distance that earned a pose its weight, far below the noise.
+constexpr double kWeightChange = 1e-3;
 
 struct Segment {
   std::size_t begin = 0;
@@ -133,7 +136,7 @@ Eigen::MatrixX3d smooth_segment(const SecondDifferences& op, const Eigen::Matrix
     for (Eigen::Index i = 0; i < n; ++i) {
       const double r = (P.row(i) - Y.row(i)).norm();
       const double w = r <= limit ? 1.0 : limit / r;
-      changed = changed || std::abs(w - weights[i]) > 1e-3;
+      changed = changed || std::abs(w - weights[i]) > kWeightChange;
       weights[i] = w;
     }
     if (!changed) break;
