@@ -250,6 +250,7 @@ TrackingOutcome Tracker::track(const Frame& frame, bool mapper_idle, std::size_t
   if (!ok) {
     state_ = TrackingState::kLost;
     velocity_.reset();
+    previous_velocity_.reset();
     objects_.forget();
     out.state = state_;
     return out;
@@ -327,10 +328,13 @@ TrackingOutcome Tracker::outcome_of(const Frame& frame, const Associations& asso
 void Tracker::accept(const Frame& frame, const Associations& assoc, const SE3& T_c_w,
                      bool mapper_idle, std::size_t mapper_queue, TrackingOutcome& out) {
   if (const auto T_last = last_frame_pose(); T_last && state_ == TrackingState::kOk) {
+    previous_velocity_ = velocity_;
+    previous_velocity_dt_ = velocity_dt_;
     velocity_ = T_c_w * T_last->inverse();
     velocity_dt_ = frame.timestamp - last_->frame.timestamp;
   } else {
     velocity_.reset();
+    previous_velocity_.reset();
   }
   state_ = TrackingState::kOk;
   out.state = state_;
@@ -398,6 +402,9 @@ std::optional<SE3> Tracker::predicted_motion(double dt) const {
 Eigen::Vector3d Tracker::angular_velocity() const {
   if (!velocity_ || !(velocity_dt_ > 1e-4) || state_ != TrackingState::kOk)
     return Eigen::Vector3d::Zero();
+  if (previous_velocity_ && previous_velocity_dt_ > 1e-4)
+    return so3_log((*velocity_ * *previous_velocity_).quaternion()) /
+           (velocity_dt_ + previous_velocity_dt_);
   return so3_log(velocity_->quaternion()) / velocity_dt_;
 }
 
