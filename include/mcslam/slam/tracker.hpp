@@ -256,8 +256,8 @@ class Tracker {
 
   TrackingState state_ = TrackingState::kNotInitialized;
   std::optional<LastFrame> last_;
-  std::optional<SE3> velocity_;  // T_cur_last of the last tracked step
-  double velocity_dt_ = 0.0;     // its duration in seconds
+  std::optional<SE3> velocity_;           // T_cur_last of the last tracked step
+  double velocity_dt_ = 0.0;              // its duration in seconds
   std::optional<SE3> previous_velocity_;  // the step before it, when tracked
   double previous_velocity_dt_ = 0.0;
   map::KeyFrameId next_keyframe_id_ = 0;
