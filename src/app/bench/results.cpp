@@ -321,7 +321,8 @@ std::string markdown(const BenchMeta& meta, const std::vector<SequenceResult>& s
      << "; frames per second and times come from the "
      << (threaded ? "threaded runs (the default mode)" : "sequential runs (mapping inline)")
      << ". Medians over runs, with (min–max) where the runs differ. Tracked: share of frames "
-        "with a tracked pose.\n";
+        "with a tracked pose. ATE is that of trajectory.txt, whose positions each run smooths "
+        "with a motion prior; unsmoothed: the same poses before (the run's summary.json).\n";
 
   std::vector<const RunRecord*> failed;
   for (const SequenceResult& s : sequences) {
