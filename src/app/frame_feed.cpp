@@ -7,8 +7,12 @@ namespace mcslam::app {
 
 using Clock = std::chrono::steady_clock;
 
-FrameFeed::FrameFeed(Loader load, std::vector<double> timestamps, FeedOptions options)
-    : load_(std::move(load)), timestamps_(std::move(timestamps)), options_(options) {
+FrameFeed::FrameFeed(Loader load, std::vector<double> timestamps, FeedOptions options,
+                     Finisher finish)
+    : load_(std::move(load)),
+      finish_(std::move(finish)),
+      timestamps_(std::move(timestamps)),
+      options_(options) {
   options_.lookahead = std::max<std::size_t>(options_.lookahead, 1);
   reader_ = std::thread([this] { read(); });
 }
@@ -74,6 +78,37 @@ void FrameFeed::read() {
       if (stop_) break;
     } else {
       slot.due_s = clock_s();
+    }
+    if (finish_ && !slot.error && options_.realtime) {
+      // The finisher's work (the features) waits until the loop has taken the frame before, so
+      // that it overlaps the loop's work on that frame and is never spent on a frame that a
+      // newer one replaces before the loop comes back: the loop takes the newest frame anyway.
+      // A frame whose successor comes due meanwhile is dropped unfinished.
+      const auto loop_free = [&] { return stop_ || ready_.empty(); };
+      bool superseded = false;
+      if (k + 1 < timestamps_.size()) {
+        const auto next_due =
+            *start_ + std::chrono::duration_cast<Clock::duration>(
+                          std::chrono::duration<double>(timestamps_[k + 1] - timestamps_.front()));
+        superseded = !changed_.wait_until(lock, next_due, loop_free);
+      } else {
+        changed_.wait(lock, loop_free);
+      }
+      if (stop_) break;
+      if (superseded) {
+        dropped_.push_back(k);
+        continue;
+      }
+    }
+    if (finish_ && !slot.error) {
+      lock.unlock();
+      try {
+        finish_(slot.images);
+      } catch (...) {
+        slot.error = std::current_exception();
+      }
+      lock.lock();
+      if (stop_) break;
     }
     slot.ready_s = std::max(clock_s(), slot.due_s);
     const bool error = slot.error != nullptr;

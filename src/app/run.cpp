@@ -351,7 +351,13 @@ class FrameInput {
     std::vector<double> stamps;
     stamps.reserve(total);
     for (std::size_t k = 0; k < total; ++k) stamps.push_back(plan.frames[k].rgb_timestamp);
-    feed_.emplace(load, std::move(stamps), FeedOptions{request.realtime, 2});
+    // Threaded runs may extract each frame's features on the feed's thread once the frame is
+    // due, while the loop tracks the frame before (SystemOptions::extract_ahead).
+    FrameFeed::Finisher extract;
+    if (!system.options().sequential && system.options().extract_ahead == "on" &&
+        system.can_extract_ahead())
+      extract = [&system](slam::PreparedImages& images) { system.extract_features(images); };
+    feed_.emplace(load, std::move(stamps), FeedOptions{request.realtime, 2}, std::move(extract));
   }
 
   /// The next frame, nullopt at the end of the stream. image_load (wait_ms) is the time the
@@ -750,6 +756,10 @@ nlohmann::json run_sequence(const RunRequest& request) {
   // lines.detector auto: a run with a deadline (real time, a live stream) takes the faster FLD.
   if (config.options.lines.detector == "auto")
     config.options.lines.detector = request.realtime || request.live ? "fld" : "lsd";
+  // system.extract_ahead auto: on in threaded runs, except where a frame's latency comes first.
+  if (config.options.extract_ahead == "auto")
+    config.options.extract_ahead =
+        request.realtime || request.live || config.options.sequential ? "off" : "on";
   io::ensure_directory(request.output_dir);
   const fs::path out(request.output_dir);
   io::write_file_atomic((out / "config.yaml").string(), slam::to_yaml(config));

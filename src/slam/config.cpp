@@ -200,6 +200,7 @@ std::vector<Field> mcslam_fields(PinholeCamera& c, SystemOptions& o) {
       {"trajectory.max_gap", &o.trajectory.max_gap},
       {"trajectory.iterations", &o.trajectory.iterations},
       {"system.sequential", &o.sequential},
+      {"system.extract_ahead", &o.extract_ahead},
       {"system.detection_interval", &o.detection_interval},
       {"system.background_niceness", &o.background_niceness},
       {"system.detector_niceness", &o.detector_niceness},

@@ -45,47 +45,6 @@ Eigen::Matrix3d FrameBuilder::rolling_shutter_rotation(const FrameMotion& motion
   return so3_exp(motion.angular_velocity * tau).toRotationMatrix().transpose();
 }
 
-Frame FrameBuilder::build(std::uint64_t id, double timestamp, const cv::Mat& gray,
-                          const cv::Mat& depth, const FrameMotion& motion,
-                          StageTimes* times) const {
-  auto result = std::make_shared<features::FrameFeatures>();
-  result->pyramid = pyramid_;
-  result->image = gray;
-  // Lines and planes are extracted on their own threads while this one extracts the points:
-  // the three read the images only and write their own lists.
-  double line_ms = 0.0, plane_ms = 0.0;
-  std::future<void> lines, planes;
-  if (use_.lines)
-    lines = std::async(std::launch::async, [&] {
-      Stopwatch w;
-      build_lines(gray, depth, motion, *result);
-      line_ms = w.elapsed_ms();
-    });
-  if (use_.planes)
-    planes = std::async(std::launch::async, [&] {
-      Stopwatch w;
-      extract_planes(depth, motion, *result);
-      plane_ms = w.elapsed_ms();
-    });
-  Stopwatch watch;
-  if (use_.points) build_points(gray, depth, motion, *result);
-  if (times) times->add("orb_extract", watch.elapsed_ms());
-  watch.restart();
-  if (lines.valid()) lines.get();
-  if (planes.valid()) planes.get();
-  if (use_.planes) assign_planes(*result);
-  if (times) {
-    times->add("extract_wait", watch.elapsed_ms());
-    if (use_.lines) times->add_concurrent("line_extract", line_ms);
-    if (use_.planes) times->add_concurrent("plane_extract", plane_ms);
-  }
-  Frame frame;
-  frame.id = id;
-  frame.timestamp = timestamp;
-  frame.features = std::move(result);
-  return frame;
-}
-
 namespace {
 
 /// The pixels of `regions`: inside a box and not beyond its depth (a missing depth counts as
@@ -115,16 +74,79 @@ cv::Mat moving_mask(const std::vector<FrameMotion::MovingRegion>& regions, const
 
 }  // namespace
 
-void FrameBuilder::build_points(const cv::Mat& gray, const cv::Mat& depth,
-                                const FrameMotion& motion, features::FrameFeatures& out) const {
+Frame FrameBuilder::build(std::uint64_t id, double timestamp, const cv::Mat& gray,
+                          const cv::Mat& depth, const FrameMotion& motion,
+                          StageTimes* times) const {
+  // The mask only matters when ORB limits its features there (orb.moving_density > 0).
+  const cv::Mat moving =
+      needs_moving_mask() ? moving_mask(motion.moving_regions, depth) : cv::Mat();
+  DetectedFeatures detected = detect(gray, depth, moving);
+  if (times) {
+    times->add("orb_extract", detected.orb_ms);
+    times->add("extract_wait", detected.wait_ms);
+    if (use_.lines) times->add_concurrent("line_extract", detected.line_ms);
+    if (use_.planes) times->add_concurrent("plane_extract", detected.plane_ms);
+  }
+  return finish(id, timestamp, std::move(detected), gray, depth, motion, times);
+}
+
+DetectedFeatures FrameBuilder::detect(const cv::Mat& gray, const cv::Mat& depth,
+                                      const cv::Mat& moving) const {
+  DetectedFeatures out;
+  out.size = gray.size();
+  // Lines and planes are extracted on their own threads while this one extracts the points:
+  // the three read the images only and write their own lists.
+  std::future<void> lines, planes;
+  if (use_.lines)
+    lines = std::async(std::launch::async, [&] {
+      Stopwatch w;
+      out.lines = lines_->extract(gray);
+      for (auto& line : out.lines) lines_->fit_depth(camera_, depth, line);
+      out.line_ms = w.elapsed_ms();
+    });
+  if (use_.planes)
+    planes = std::async(std::launch::async, [&] {
+      Stopwatch w;
+      out.planes = planes_->extract(depth).planes;
+      out.plane_ms = w.elapsed_ms();
+    });
+  Stopwatch watch;
+  if (use_.points) out.orb = orb_.extract(gray, moving);
+  out.orb_ms = watch.elapsed_ms();
+  watch.restart();
+  if (lines.valid()) lines.get();
+  if (planes.valid()) planes.get();
+  out.wait_ms = watch.elapsed_ms();
+  return out;
+}
+
+Frame FrameBuilder::finish(std::uint64_t id, double timestamp, DetectedFeatures detected,
+                           const cv::Mat& gray, const cv::Mat& depth, const FrameMotion& motion,
+                           StageTimes* times) const {
+  Stopwatch watch;
+  auto result = std::make_shared<features::FrameFeatures>();
+  result->pyramid = pyramid_;
+  result->image = gray;
+  if (use_.points) finish_points(std::move(detected.orb), depth, motion, *result);
+  if (use_.lines) finish_lines(std::move(detected.lines), motion, *result);
+  if (use_.planes) {
+    finish_planes(std::move(detected.planes), motion, *result);
+    assign_planes(*result);
+  }
+  if (times) times->add("feature_finish", watch.elapsed_ms());
+  Frame frame;
+  frame.id = id;
+  frame.timestamp = timestamp;
+  frame.features = std::move(result);
+  return frame;
+}
+
+void FrameBuilder::finish_points(features::OrbFeatures orb, const cv::Mat& depth,
+                                 const FrameMotion& motion, features::FrameFeatures& out) const {
   const bool compensate = motion.T_rgb_depth.has_value();
   const SE3 T_rgb_d = compensate ? *motion.T_rgb_depth : SE3();
   const SE3 T_d_rgb = T_rgb_d.inverse();
   const bool rolling_shutter = rolling(motion);
-  // The mask only matters when ORB limits its features there (orb.moving_density > 0).
-  const cv::Mat moving =
-      orb_.options().moving_density > 0.0 ? moving_mask(motion.moving_regions, depth) : cv::Mat();
-  features::OrbFeatures orb = orb_.extract(gray, moving);
   out.points.resize(orb.keypoints.size());
   for (std::size_t i = 0; i < orb.keypoints.size(); ++i) {
     features::PointFeature& p = out.points[i];
@@ -168,14 +190,14 @@ void FrameBuilder::build_points(const cv::Mat& gray, const cv::Mat& depth,
   out.grid = features::KeypointGrid(orb.keypoints, camera_.width, camera_.height);
 }
 
-void FrameBuilder::build_lines(const cv::Mat& gray, const cv::Mat& depth, const FrameMotion& motion,
-                               features::FrameFeatures& out) const {
-  out.lines = lines_->extract(gray);
+void FrameBuilder::finish_lines(std::vector<features::LineFeature> lines, const FrameMotion& motion,
+                                features::FrameFeatures& out) const {
+  out.lines = std::move(lines);
   const bool compensate = motion.T_rgb_depth.has_value();
   const bool rolling_shutter = rolling(motion);
   for (auto& line : out.lines) {
-    lines_->fit_depth(camera_, depth, line);
-    // The same depth range as points: beyond it the sensor's depth is not to be trusted.
+    // Fitted in detect(). The same depth range as points: beyond it the sensor's depth is not to be
+    // trusted.
     if (line.has_depth && (std::min(line.start_c.z(), line.end_c.z()) < min_depth_ ||
                            std::max(line.start_c.z(), line.end_c.z()) > max_depth_))
       line.has_depth = false;
@@ -198,10 +220,9 @@ void FrameBuilder::build_lines(const cv::Mat& gray, const cv::Mat& depth, const 
   }
 }
 
-void FrameBuilder::extract_planes(const cv::Mat& depth, const FrameMotion& motion,
-                                  features::FrameFeatures& out) const {
-  features::PlaneExtraction extraction = planes_->extract(depth);
-  out.planes = std::move(extraction.planes);
+void FrameBuilder::finish_planes(std::vector<features::PlaneFeature> planes,
+                                 const FrameMotion& motion, features::FrameFeatures& out) const {
+  out.planes = std::move(planes);
   if (motion.T_rgb_depth) {
     // n' = R n, d' = d - n' . t moves a plane from the depth capture time to the colour one.
     const SE3& T = *motion.T_rgb_depth;

@@ -23,6 +23,8 @@ System::System(const PinholeCamera& camera, const SystemOptions& options,
   if (options_.localize) options_.place.loop.enabled = false;
   undistorter_ = std::make_unique<io::Undistorter>(camera_);
   builder_ = std::make_unique<FrameBuilder>(camera_, options_);
+  if (!builder_->needs_moving_mask())
+    ahead_builder_ = std::make_unique<FrameBuilder>(camera_, options_);
   map_ = from_map ? std::move(initial_map) : std::make_unique<map::Map>();
   if (!options_.place.vocabulary.empty())
     vocabulary_ = std::make_shared<const place::Vocabulary>(
@@ -125,6 +127,28 @@ PreparedImages System::prepare(const cv::Mat& rgb, const cv::Mat& depth) const {
   return out;
 }
 
+bool System::can_extract_ahead() const { return ahead_builder_ != nullptr; }
+
+void System::extract_features(PreparedImages& images) const {
+  if (!ahead_builder_ || !images.problem.empty() || images.features) return;
+  images.features =
+      std::make_shared<const DetectedFeatures>(ahead_builder_->detect(images.gray, images.depth));
+}
+
+Frame System::build_frame(const PreparedImages& images, FrameResult& result,
+                          const FrameMotion& motion) const {
+  const DetectedFeatures* ahead = images.features.get();
+  if (!ahead || !can_extract_ahead() || ahead->size != images.gray.size())
+    return builder_->build(result.frame_id, result.timestamp, images.gray, images.depth, motion,
+                           &result.times);
+  // Found on another thread while the frame before was tracked: this frame did not wait.
+  result.times.add_concurrent("orb_extract", ahead->orb_ms);
+  if (options_.use.lines) result.times.add_concurrent("line_extract", ahead->line_ms);
+  if (options_.use.planes) result.times.add_concurrent("plane_extract", ahead->plane_ms);
+  return builder_->finish(result.frame_id, result.timestamp, *ahead, images.gray, images.depth,
+                          motion, &result.times);
+}
+
 FrameResult System::process(const cv::Mat& rgb, const cv::Mat& depth, double timestamp,
                             std::optional<double> depth_timestamp) {
   PreparedImages images = prepare(rgb, depth);
@@ -161,8 +185,7 @@ FrameResult System::process(const PreparedImages& images, double timestamp,
 
   const FrameMotion motion = frame_motion(timestamp, depth_timestamp);
   result.readout_time = motion.readout_time;
-  Frame frame =
-      builder_->build(result.frame_id, timestamp, images.gray, images.depth, motion, &result.times);
+  Frame frame = build_frame(images, result, motion);
   if (detections_) attach_boxes(frame, wait_for_boxes, result);
   result.features = static_cast<int>(frame.features->points.size());
   result.lines = static_cast<int>(frame.features->lines.size());

@@ -133,6 +133,42 @@ TEST(FrameFeed, LoaderErrorsReachTheLoopAtTheirFrame) {
   }
 }
 
+TEST(FrameFeed, FinisherWorksOnEachFrameOnceItIsDue) {
+  // The finisher (the run's feature extraction) starts only when its frame is due, as a camera's
+  // image exists only then, and the loop gets the frame with its work done; what it throws
+  // reaches the loop at its frame.
+  using Clock = std::chrono::steady_clock;
+  std::vector<Clock::time_point> started;  // written on the reader's thread, read after join
+  FrameFeed::Finisher finish = [&](slam::PreparedImages& images) {
+    started.push_back(Clock::now());
+    if (images.prepare_ms == 4.0) throw InputError("frame 4: no features");
+    images.problem = "finished " + std::to_string(static_cast<int>(images.prepare_ms));
+  };
+  std::size_t count = 0;
+  bool thrown = false;
+  {
+    FrameFeed feed(counting_loader(), stamps(8, 0.03), FeedOptions{true, 2}, finish);
+    try {
+      while (auto f = feed.next()) {
+        EXPECT_EQ(f->images.problem, "finished " + std::to_string(f->index));
+        ++count;
+      }
+    } catch (const InputError& e) {
+      thrown = true;
+      EXPECT_NE(std::string(e.what()).find("frame 4"), std::string::npos) << e.what();
+    }
+  }
+  EXPECT_TRUE(thrown);
+  EXPECT_EQ(count, 4u);
+  ASSERT_GE(started.size(), 5u);
+  // Frame 0 is due when the clock starts, just before its finisher: frame k's finisher starts
+  // 30 ms x k after it at the earliest (5 ms of slack for frame 0's own start).
+  for (std::size_t k = 1; k < 5; ++k)
+    EXPECT_GE(std::chrono::duration<double>(started[k] - started[0]).count(),
+              0.03 * static_cast<double>(k) - 0.005)
+        << "frame " << k << " started early";
+}
+
 TEST(FrameFeed, StopsCleanlyWhenLeftEarly) {
   // A real-time feed of frames 10 s apart destroyed after one frame: the reader wakes from its
   // wait for frame 1 at once and joins (without the wake-up this takes 10 s).

@@ -60,5 +60,71 @@ TEST(FrameBuilder, DepthPerKeypointAndTimeOffsetCompensation) {
   EXPECT_GT(n_comp, n_raw / 2);  // edge rejection drops some, not most
 }
 
+TEST(FrameBuilder, FeaturesFoundAheadFinishAsTheFrameWouldBuildThem) {
+  // System::extract_features runs detect() on another thread (another builder) before the
+  // motion is known; finish() then must give the very frame build() gives, motion included.
+  synth::SynthOptions synth_options;
+  synth_options.frames = 2;
+  synth::SyntheticSequence seq(synth_options);
+  const auto rendered = seq.renderer().render(synth::camera_pose_at(0.5, synth_options.speed), 0.5);
+  cv::Mat gray;
+  cv::cvtColor(rendered.rgb, gray, cv::COLOR_BGR2GRAY);
+  const SystemOptions options;
+  const FrameBuilder builder(seq.camera(), options);
+  const FrameBuilder ahead(seq.camera(), options);
+  FrameMotion motion;
+  motion.T_rgb_depth =
+      SE3(so3_exp(Eigen::Vector3d(0.002, -0.001, 0.003)), Eigen::Vector3d(0.004, 0.001, -0.002));
+  motion.angular_velocity = Eigen::Vector3d(0.3, -0.5, 0.2);
+  motion.readout_time = 0.02;
+
+  StageTimes built_times, finished_times;
+  const Frame built = builder.build(7, 0.5, gray, rendered.depth, motion, &built_times);
+  DetectedFeatures detected = ahead.detect(gray, rendered.depth);
+  EXPECT_EQ(detected.size, gray.size());
+  const Frame finished =
+      builder.finish(7, 0.5, std::move(detected), gray, rendered.depth, motion, &finished_times);
+
+  const auto& a = *built.features;
+  const auto& b = *finished.features;
+  ASSERT_GT(a.points.size(), 500u);
+  ASSERT_GT(a.lines.size(), 10u);
+  ASSERT_GE(a.planes.size(), 2u);
+  ASSERT_EQ(a.points.size(), b.points.size());
+  for (std::size_t i = 0; i < a.points.size(); ++i) {
+    EXPECT_EQ(a.points[i].keypoint.uv, b.points[i].keypoint.uv) << i;
+    EXPECT_EQ(a.points[i].depth, b.points[i].depth) << i;
+    EXPECT_EQ(a.points[i].plane, b.points[i].plane) << i;
+    EXPECT_EQ(a.points[i].descriptor, b.points[i].descriptor) << i;
+  }
+  ASSERT_EQ(a.lines.size(), b.lines.size());
+  for (std::size_t i = 0; i < a.lines.size(); ++i) {
+    EXPECT_EQ(a.lines[i].start, b.lines[i].start) << i;
+    EXPECT_EQ(a.lines[i].end, b.lines[i].end) << i;
+    EXPECT_EQ(a.lines[i].has_depth, b.lines[i].has_depth) << i;
+    EXPECT_EQ(a.lines[i].start_c, b.lines[i].start_c) << i;
+    EXPECT_EQ(a.lines[i].descriptor, b.lines[i].descriptor) << i;
+  }
+  ASSERT_EQ(a.planes.size(), b.planes.size());
+  for (std::size_t i = 0; i < a.planes.size(); ++i) {
+    EXPECT_EQ(a.planes[i].normal, b.planes[i].normal) << i;
+    EXPECT_EQ(a.planes[i].d, b.planes[i].d) << i;
+  }
+  // The grid answers for the moved keypoints in both.
+  const auto near_a = a.grid.query(320.0f, 240.0f, 40.0f);
+  const auto near_b = b.grid.query(320.0f, 240.0f, 40.0f);
+  EXPECT_EQ(near_a, near_b);
+  EXPECT_FALSE(near_a.empty());
+  // Only the finishing is the loop's own work when the features came ahead.
+  const auto has = [](const StageTimes& t, const std::string& name) {
+    return std::any_of(t.stages.begin(), t.stages.end(),
+                       [&](const auto& s) { return s.first == name; });
+  };
+  EXPECT_TRUE(has(built_times, "orb_extract"));
+  EXPECT_TRUE(has(built_times, "feature_finish"));
+  EXPECT_FALSE(has(finished_times, "orb_extract"));
+  EXPECT_TRUE(has(finished_times, "feature_finish"));
+}
+
 }  // namespace
 }  // namespace mcslam::slam

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cstdio>
 #include <thread>
@@ -144,6 +145,51 @@ TEST(System, SequentialModeIsDeterministic) {
     EXPECT_EQ((a.trajectory[i].T_w_c.translation() - b.trajectory[i].T_w_c.translation()).norm(),
               0.0);
   }
+}
+
+TEST(System, FeaturesExtractedAheadOnAnotherThreadGiveTheSameTrajectory) {
+  // A run extracts frame k + 1's features on its reader's thread while frame k is processed
+  // (System::extract_features): the poses must be the very ones of the frame's own extraction
+  // (sequential, so deterministic), and ThreadSanitizer checks the overlap.
+  const auto& seq = test::rendered_sequence(150, false);
+  const RunResult plain = run(seq, sequential_options(), 0, 60);
+  System system(seq.camera, sequential_options());
+  ASSERT_TRUE(system.can_extract_ahead());
+  const auto prepared = [&](std::size_t i) {
+    PreparedImages images = system.prepare(seq.frames[i].rgb, seq.frames[i].depth);
+    system.extract_features(images);
+    return images;
+  };
+  PreparedImages next = prepared(0);
+  ASSERT_NE(next.features, nullptr);
+  for (std::size_t i = 0; i < 60; ++i) {
+    PreparedImages images = std::move(next);
+    std::thread reader([&] {
+      if (i + 1 < 60) next = prepared(i + 1);
+    });
+    const FrameResult r = system.process(images, seq.groundtruth[i].timestamp);
+    reader.join();
+    EXPECT_EQ(r.state, TrackingState::kOk) << i;
+    const auto extracted_here =
+        std::find_if(r.times.stages.begin(), r.times.stages.end(),
+                     [](const auto& s) { return s.first == "extract_wait"; });
+    EXPECT_EQ(extracted_here, r.times.stages.end()) << "frame " << i << " extracted again";
+  }
+  system.finish();
+  const Trajectory ahead = system.trajectory();
+  ASSERT_EQ(ahead.size(), plain.trajectory.size());
+  for (std::size_t i = 0; i < ahead.size(); ++i)
+    EXPECT_EQ((ahead[i].T_w_c.translation() - plain.trajectory[i].T_w_c.translation()).norm(), 0.0)
+        << i;
+
+  // Points limited where the frame before saw movers depend on that frame: no extraction ahead.
+  SystemOptions dense = sequential_options();
+  dense.orb.moving_density = 0.5;
+  System limited(seq.camera, dense);
+  EXPECT_FALSE(limited.can_extract_ahead());
+  PreparedImages images = limited.prepare(seq.frames[0].rgb, seq.frames[0].depth);
+  limited.extract_features(images);
+  EXPECT_EQ(images.features, nullptr);
 }
 
 TEST(System, BadFramesAreLostNotCrashes) {

@@ -8,7 +8,8 @@
 // (the reader prepares each one ahead of its time and releases it at that time). The loop takes
 // the newest available frame; one that a newer frame replaces before the loop took it is
 // dropped, as a camera driver drops what a slow consumer misses. The clock starts when the first
-// frame is ready.
+// frame is ready. Work that needs the frame to exist (feature extraction) runs on the reader's
+// thread too, once the frame is due, and counts in its latency.
 
 #include <chrono>
 #include <condition_variable>
@@ -47,10 +48,15 @@ class FrameFeed {
   /// Prepares frame k (reads, decodes, undistorts); may throw InputError, which next() rethrows
   /// when the loop reaches that frame.
   using Loader = std::function<slam::PreparedImages(std::size_t)>;
+  /// Work on a prepared frame that may only start once the frame is due, as a camera's image
+  /// exists only then (in order: right after loading): the run's feature extraction, which then
+  /// overlaps the loop's tracking of the frame before. On the reader's thread; what it throws,
+  /// next() rethrows as the loader's.
+  using Finisher = std::function<void(slam::PreparedImages&)>;
 
   /// `timestamps`: capture time (s) of each frame, non-decreasing; in real time frame k is due
   /// timestamps[k] - timestamps[0] seconds after the clock starts. Starts the reader thread.
-  FrameFeed(Loader load, std::vector<double> timestamps, FeedOptions options);
+  FrameFeed(Loader load, std::vector<double> timestamps, FeedOptions options, Finisher finish = {});
   /// Stops the reader (between two frames) and joins it.
   ~FrameFeed();
   FrameFeed(const FrameFeed&) = delete;
@@ -76,6 +82,7 @@ class FrameFeed {
   double clock_s() const;  // under mutex_
 
   Loader load_;
+  Finisher finish_;
   std::vector<double> timestamps_;
   FeedOptions options_;
   mutable std::mutex mutex_;

@@ -59,6 +59,24 @@ struct FrameMotion {
   std::vector<MovingRegion> moving_regions;
 };
 
+/// The part of a frame's features that does not depend on the camera's motion, and the costly
+/// part of building a frame: ORB keypoints and descriptors, line segments with their 3D endpoints
+/// fitted in the depth image, and the planes of the depth image. A run can find them ahead, on
+/// another thread, while the frame before is tracked (System::extract_features); FrameBuilder
+/// then only finishes them with the motion (depth moved to the colour time, rolling shutter).
+struct DetectedFeatures {
+  features::OrbFeatures orb;
+  std::vector<features::LineFeature> lines;
+  std::vector<features::PlaneFeature> planes;
+  cv::Size size;  ///< of the images they were found in
+  /// Extraction times (ms), each on its own thread.
+  double orb_ms = 0.0;
+  double line_ms = 0.0;
+  double plane_ms = 0.0;
+  /// What the calling thread waited for the lines and planes after its own points.
+  double wait_ms = 0.0;
+};
+
 /// Extracts the feature kinds switched on in the options (ORB points with their depth and
 /// virtual right coordinate, line segments with 3D endpoints, planes) and tells which plane each
 /// point lies on. `gray` is CV_8UC1 and `depth` is CV_32FC1 in metres (0 = missing), both
@@ -67,23 +85,35 @@ class FrameBuilder {
  public:
   FrameBuilder(const PinholeCamera& camera, const SystemOptions& options);
   ~FrameBuilder();
-  /// Stage times go to `times` when given: orb_extract, then extract_wait (the wait for lines
-  /// and planes, extracted on their own threads meanwhile), and line_extract and plane_extract
-  /// as concurrent stages (see StageTimes).
+  /// detect(), then finish(). Stage times go to `times` when given: orb_extract, then
+  /// extract_wait (the wait for lines and planes, extracted on their own threads meanwhile), and
+  /// line_extract and plane_extract as concurrent stages (see StageTimes), then feature_finish.
   Frame build(std::uint64_t id, double timestamp, const cv::Mat& gray, const cv::Mat& depth,
               const FrameMotion& motion = {}, StageTimes* times = nullptr) const;
+  /// The motion-independent features: points on this thread, lines and planes on their own
+  /// meanwhile. `moving` as in OrbExtractor::extract (see needs_moving_mask()). Not thread-safe
+  /// (the line extractor's buffers): one call at a time per builder.
+  DetectedFeatures detect(const cv::Mat& gray, const cv::Mat& depth,
+                          const cv::Mat& moving = {}) const;
+  /// The frame from features that detect() found in the same images. Stage time:
+  /// feature_finish.
+  Frame finish(std::uint64_t id, double timestamp, DetectedFeatures detected, const cv::Mat& gray,
+               const cv::Mat& depth, const FrameMotion& motion = {},
+               StageTimes* times = nullptr) const;
+  /// True when the points depend on the frame before (orb.moving_density > 0 limits them where
+  /// it saw movers): detect() then needs that frame's moving regions and cannot run ahead.
+  bool needs_moving_mask() const { return orb_.options().moving_density > 0.0; }
   const std::shared_ptr<const features::ScalePyramid>& pyramid() const { return pyramid_; }
 
  private:
   std::optional<float> depth_at(const cv::Mat& depth, double u, double v) const;
-  void build_points(const cv::Mat& gray, const cv::Mat& depth, const FrameMotion& motion,
+  void finish_points(features::OrbFeatures orb, const cv::Mat& depth, const FrameMotion& motion,
+                     features::FrameFeatures& out) const;
+  void finish_lines(std::vector<features::LineFeature> lines, const FrameMotion& motion,
                     features::FrameFeatures& out) const;
-  void build_lines(const cv::Mat& gray, const cv::Mat& depth, const FrameMotion& motion,
-                   features::FrameFeatures& out) const;
-  /// Planes of the depth image (moved to the colour time); assign_planes then tells each point
-  /// its plane.
-  void extract_planes(const cv::Mat& depth, const FrameMotion& motion,
-                      features::FrameFeatures& out) const;
+  /// Planes found in the depth image, moved to the colour time.
+  void finish_planes(std::vector<features::PlaneFeature> planes, const FrameMotion& motion,
+                     features::FrameFeatures& out) const;
   void assign_planes(features::FrameFeatures& out) const;
   /// The rotation that moves a bearing seen at image row v to the middle row's time.
   Eigen::Matrix3d rolling_shutter_rotation(const FrameMotion& motion, double v) const;

@@ -39,6 +39,7 @@ class Undistorter;
 namespace mcslam::slam {
 
 class FrameBuilder;
+struct DetectedFeatures;
 class LocalMapper;
 class LoopCloser;
 
@@ -99,6 +100,9 @@ struct PreparedImages {
   double prepare_ms = 0.0;  ///< what prepare() took (grey conversion and undistortion)
   /// Empty when the frame is usable; otherwise why not (wrong size or type): it is then lost.
   std::string problem;
+  /// The frame's motion-independent features when System::extract_features found them ahead
+  /// (null: process() extracts them itself).
+  std::shared_ptr<const DetectedFeatures> features;
 };
 
 class System {
@@ -131,6 +135,17 @@ class System {
   /// what the constructor made, so it may run on any thread, alongside process(). Never throws
   /// for image content: a wrong size or type is reported in PreparedImages::problem.
   PreparedImages prepare(const cv::Mat& rgb, const cv::Mat& depth) const;
+
+  /// Finds the frame's points, lines and planes now, into images.features, so that process()
+  /// only finishes them with the camera's motion: a run calls it on its reader's thread, and the
+  /// next frame's extraction overlaps the tracking of the frame before. It has its own
+  /// extractors: one thread at a time may call it, alongside process(). Does nothing (process()
+  /// then extracts) when images.problem is set or when the points depend on the frame before
+  /// (orb.moving_density > 0). Stage times: orb_extract, line_extract and plane_extract, listed
+  /// by process() as concurrent (the frame did not wait for them).
+  void extract_features(PreparedImages& images) const;
+  /// False when extract_features() does nothing (orb.moving_density > 0).
+  bool can_extract_ahead() const;
 
   /// Boxes for every later frame come from `source` (a model on its own thread, or a file);
   /// without one the system runs on geometry alone. With `wait`, each frame waits for its own
@@ -191,6 +206,7 @@ class System {
   SystemOptions options_;
   std::unique_ptr<io::Undistorter> undistorter_;
   std::unique_ptr<FrameBuilder> builder_;
+  std::unique_ptr<FrameBuilder> ahead_builder_;  // extract_features(), on the caller's thread
   std::unique_ptr<map::Map> map_;
   std::unique_ptr<Tracker> tracker_;
   std::shared_ptr<const place::Vocabulary> vocabulary_;
@@ -206,6 +222,10 @@ class System {
   /// What is known of the camera's motion around the frame (depth time, rolling shutter) and
   /// where moving objects are expected in it.
   FrameMotion frame_motion(double timestamp, std::optional<double> depth_timestamp) const;
+  /// The frame's features: finished from images.features when extract_features() found them,
+  /// extracted here otherwise.
+  Frame build_frame(const PreparedImages& images, FrameResult& result,
+                    const FrameMotion& motion) const;
   /// The frame's boxes from the detection source (its own when `wait`), into frame.objects and
   /// the result's detection fields.
   void attach_boxes(Frame& frame, bool wait, FrameResult& result) const;
