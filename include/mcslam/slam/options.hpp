@@ -212,13 +212,15 @@ struct SystemOptions {
   /// planes are extracted on the reader's thread once the frame is due, while the frame loop
   /// still tracks the frame before (System::extract_features); the loop then only finishes them
   /// with the motion. The features are the same; the two stages overlap on two cores, which
-  /// raises the frame rate, but each stage runs slower beside the other, which raises a
-  /// frame's latency (measured in docs/crowd.md: freiburg1_rpy 1.13x the frames per second;
-  /// Bonn crowd part 1 in real time on a loaded machine 1.1x the frames processed, with the
-  /// latency p95 from 89 to 122 ms). "off": the loop extracts (sequential runs always do).
-  /// "auto" (the default): on, except in runs with a deadline (`--realtime`, the ROS node),
-  /// where latency comes first. Not with orb.moving_density > 0, whose points depend on the
-  /// frame before.
+  /// raises the frame rate (freiburg1_rpy without a detector: 1.17x), but each stage runs
+  /// slower beside the other, which lengthens a frame's latency (Bonn crowd part 1 in real
+  /// time on a loaded machine: 1.1x the frames processed, latency p95 122 against 89 ms), and
+  /// the extraction takes CPU from a detector model on the same cores (part 1 from frame 240:
+  /// 6.5 passes a second against 9.6, boxes a frame older, tracking lost in the crowd's hardest
+  /// window). "off": the loop extracts (sequential runs always do). "auto" (the default): on in
+  /// threaded runs without a deadline (`--realtime`, the ROS node) and without a detector model
+  /// (docs/crowd.md). Never with orb.moving_density > 0, whose points depend on the frame
+  /// before.
   std::string extract_ahead = "auto";
   /// A detector model (threaded mode, not waiting for boxes) is given a frame only when at least
   /// this many frames have passed since the last one it was given. Boxes are carried from the
