@@ -354,7 +354,7 @@ class FrameInput {
     // Threaded runs may extract each frame's features on the feed's thread once the frame is
     // due, while the loop tracks the frame before (SystemOptions::extract_ahead).
     FrameFeed::Finisher extract;
-    if (!system.options().sequential && system.options().extract_ahead == "on" &&
+    if (!system.options().sequential && system.options().extract_ahead &&
         system.can_extract_ahead())
       extract = [&system](slam::PreparedImages& images) { system.extract_features(images); };
     feed_.emplace(load, std::move(stamps), FeedOptions{request.realtime, 2}, std::move(extract));
@@ -756,12 +756,6 @@ nlohmann::json run_sequence(const RunRequest& request) {
   // lines.detector auto: a run with a deadline (real time, a live stream) takes the faster FLD.
   if (config.options.lines.detector == "auto")
     config.options.lines.detector = request.realtime || request.live ? "fld" : "lsd";
-  // system.extract_ahead auto: on in threaded runs, except where a frame's latency comes first
-  // and where a detector model needs the CPU it would take.
-  if (config.options.extract_ahead == "auto")
-    config.options.extract_ahead =
-        request.realtime || request.live || config.options.sequential || request.model ? "off"
-                                                                                       : "on";
   io::ensure_directory(request.output_dir);
   const fs::path out(request.output_dir);
   io::write_file_atomic((out / "config.yaml").string(), slam::to_yaml(config));

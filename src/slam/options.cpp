@@ -84,8 +84,6 @@ std::optional<std::string> SystemOptions::check() const {
     return "system.detector_niceness must be in [0, 19]";
   if (opencv_threads < 0 || opencv_threads > 256)
     return "system.opencv_threads must be in [0, 256] (0: OpenCV's default)";
-  if (extract_ahead != "auto" && extract_ahead != "on" && extract_ahead != "off")
-    return "system.extract_ahead must be auto, on or off (got \"" + extract_ahead + "\")";
   if (cold_start_keyframes < 0 || cold_start_keyframes > 1000)
     return "system.cold_start_keyframes must be in [0, 1000]";
   if (!(detector_scale == 0.0 || (detector_scale >= 0.05 && detector_scale <= 4.0)))

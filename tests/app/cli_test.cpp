@@ -271,22 +271,25 @@ TEST(CliRun, RealTimeRunAccountsForEveryFrame) {
   };
   EXPECT_TRUE(has_line(lines_of(out / "config.yaml"), "detector: fld"));
   EXPECT_TRUE(has_line(lines_of(main_run().out / "config.yaml"), "detector: lsd"));
-  // system.extract_ahead auto: off with a deadline (the frame's own thread extracts, and waits
-  // for its lines and planes), as in sequential runs; on in a threaded run without one, whose
-  // loop only finishes the features found ahead.
-  EXPECT_TRUE(has_line(lines_of(out / "config.yaml"), "extract_ahead: off"));
+  // The frame's own thread extracts (system.extract_ahead off, the default) and waits for its
+  // lines and planes; with extract_ahead the reader extracts while the loop tracks the frame
+  // before, and the loop only finishes the features, in real time as without it.
   EXPECT_TRUE(summary["stages"].contains("extract_wait"));
-  EXPECT_TRUE(has_line(lines_of(main_run().out / "config.yaml"), "extract_ahead: off"));
-  const fs::path threaded = root() / "out_threaded_ahead";
-  const CliResult ahead = run_cli("run " + quote(main_sequence().string()) + " --output " +
-                                  quote(threaded.string()) + " --max-frames 15 -q");
-  ASSERT_EQ(ahead.exit_code, 0) << ahead;
-  EXPECT_TRUE(has_line(lines_of(threaded / "config.yaml"), "extract_ahead: on"));
-  const nlohmann::json stages = read_json(threaded / "summary.json")["stages"];
-  EXPECT_FALSE(stages.contains("extract_wait")) << stages.dump(1);
-  EXPECT_TRUE(stages.contains("feature_finish")) << stages.dump(1);
-  EXPECT_TRUE(stages.contains("orb_extract")) << stages.dump(1);
-  EXPECT_EQ(read_json(threaded / "summary.json")["tracked_frames"].get<int>(), 15);
+  EXPECT_TRUE(has_line(lines_of(out / "config.yaml"), "extract_ahead: false"));
+  write_file(root() / "ahead.yaml", "system:\n  extract_ahead: true\n");
+  for (const char* mode : {"", " --realtime"}) {
+    const fs::path ahead_out = root() / (std::string("out_ahead") + (*mode ? "_rt" : ""));
+    const CliResult ahead = run_cli(
+        "run " + quote(main_sequence().string()) + " --output " + quote(ahead_out.string()) +
+        " -c " + quote((root() / "ahead.yaml").string()) + " --max-frames 15 -q" + mode);
+    ASSERT_EQ(ahead.exit_code, 0) << ahead;
+    EXPECT_TRUE(has_line(lines_of(ahead_out / "config.yaml"), "extract_ahead: true"));
+    const nlohmann::json done = read_json(ahead_out / "summary.json");
+    EXPECT_FALSE(done["stages"].contains("extract_wait")) << mode << done["stages"].dump(1);
+    EXPECT_TRUE(done["stages"].contains("feature_finish")) << mode << done["stages"].dump(1);
+    EXPECT_TRUE(done["stages"].contains("orb_extract")) << mode << done["stages"].dump(1);
+    EXPECT_GE(done["tracked_frames"].get<int>(), *mode ? 1 : 15) << mode;
+  }
   // Together with --repeat it is refused, with one message.
   const CliResult both =
       run_cli("run " + quote(main_sequence().string()) + " --output " +

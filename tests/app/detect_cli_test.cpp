@@ -128,26 +128,6 @@ TEST(DetectCli, SequenceWithoutDepthListAndMaxFrames) {
   EXPECT_FALSE(fs::exists(out / "annotated" / (kFrames[2] + ".jpg")));
 }
 
-TEST(DetectCli, RunWithAModelExtractsOnTheFrameThread) {
-  // system.extract_ahead auto is off with a detector model: extracting ahead would take the
-  // detector's CPU (docs/crowd.md). config.yaml holds the value used; the frame waits for its
-  // own lines and planes (extract_wait).
-  REQUIRE_FILE(kYoloV8);
-  REQUIRE_FILE(kRpy + "/rgb.txt");
-  TempDir dir;
-  const fs::path out = dir / "run";
-  const CliResult r =
-      mcslam::test::run_command(MCSLAM_EXE,
-                                "run " + quote(kRpy) + " --model " + quote(kYoloV8) +
-                                    " --max-frames 8 -q --output " + quote(out.string()),
-                                dir / "stdout.txt", dir / "stderr.txt");
-  ASSERT_EQ(r.exit_code, 0) << r;
-  EXPECT_NE(read_file(out / "config.yaml").find("extract_ahead: off"), std::string::npos);
-  std::ifstream in(out / "summary.json");
-  const nlohmann::json summary = nlohmann::json::parse(in);
-  EXPECT_TRUE(summary["stages"].contains("extract_wait")) << summary["stages"].dump(1);
-}
-
 TEST(DetectCli, MissingImage) {
   TempDir dir;
   const std::string image = (dir / "absent.png").string();

@@ -106,16 +106,6 @@ TEST(Config, UnknownKeysAndBadValuesAreErrorsNamingTheFile) {
     const std::string m = message_of([&] { apply_config(bad, good, fresh); });
     EXPECT_NE(m.find("tracker.established_"), std::string::npos) << text << ": " << m;
   }
-  {
-    SystemOptions fresh;
-    io::ConfigFile ahead =
-        io::ConfigFile::from_string("system: {extract_ahead: sometimes}\n", "ahead.yaml");
-    const std::string m = message_of([&] { apply_config(ahead, good, fresh); });
-    EXPECT_NE(m.find("system.extract_ahead must be auto, on or off"), std::string::npos) << m;
-    io::ConfigFile off = io::ConfigFile::from_string("system: {extract_ahead: off}\n", "off.yaml");
-    apply_config(off, good, fresh);
-    EXPECT_EQ(fresh.extract_ahead, "off");
-  }
   SystemOptions own;
   io::ConfigFile own_size =
       io::ConfigFile::from_string("system: {detector_scale: 0}\n", "own.yaml");

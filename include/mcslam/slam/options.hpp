@@ -208,20 +208,19 @@ struct SystemOptions {
   bool localize = false;
   /// Run local mapping inline after each keyframe (deterministic) instead of on its own thread.
   bool sequential = false;
-  /// "on": in threaded runs (`mcslam run` without --sequential) each frame's points, lines and
-  /// planes are extracted on the reader's thread once the frame is due, while the frame loop
-  /// still tracks the frame before (System::extract_features); the loop then only finishes them
-  /// with the motion. The features are the same; the two stages overlap on two cores, which
-  /// raises the frame rate (freiburg1_rpy without a detector: 1.17x), but each stage runs
-  /// slower beside the other, which lengthens a frame's latency (Bonn crowd part 1 in real
-  /// time on a loaded machine: 1.1x the frames processed, latency p95 122 against 89 ms), and
-  /// the extraction takes CPU from a detector model on the same cores (part 1 from frame 240:
-  /// 6.5 passes a second against 9.6, boxes a frame older, tracking lost in the crowd's hardest
-  /// window). "off": the loop extracts (sequential runs always do). "auto" (the default): on in
-  /// threaded runs without a deadline (`--realtime`, the ROS node) and without a detector model
-  /// (docs/crowd.md). Never with orb.moving_density > 0, whose points depend on the frame
-  /// before.
-  std::string extract_ahead = "auto";
+  /// In threaded runs (`mcslam run` without --sequential), extract each frame's points, lines
+  /// and planes on the reader's thread once the frame is due (with --realtime: once the loop has
+  /// taken the frame before), while the frame loop still tracks the frame before
+  /// (System::extract_features); the loop then only finishes them with the motion. The
+  /// features are the same; the two stages overlap on the two cores. Off by default, because
+  /// the overlap also takes CPU from the other threads (measured on 2 cores, docs/crowd.md):
+  /// offline, freiburg1_rpy runs 1.1-1.4x the frames per second but the mapper keeps up with
+  /// fewer of them (a fifth fewer keyframes, ATE 1.1-1.2x) and a detector model gets fewer
+  /// passes (tracking lost in Bonn crowd's hardest window); in real time on a loaded machine
+  /// 1.1x the frames are processed, with a better ATE, but each stage runs slower beside the
+  /// other and the latency p95 rose from 89 to 122 ms. Never with orb.moving_density > 0,
+  /// whose points depend on the frame before.
+  bool extract_ahead = false;
   /// A detector model (threaded mode, not waiting for boxes) is given a frame only when at least
   /// this many frames have passed since the last one it was given. Boxes are carried from the
   /// detector's frame to every frame by their features' motion (dynamics.propagate_boxes), so a
