@@ -354,8 +354,7 @@ class FrameInput {
     // Threaded runs may extract each frame's features on the feed's thread once the frame is
     // due, while the loop tracks the frame before (SystemOptions::extract_ahead).
     FrameFeed::Finisher extract;
-    if (!system.options().sequential && system.options().extract_ahead &&
-        system.can_extract_ahead())
+    if (!system.options().sequential && system.can_extract_ahead())
       extract = [&system](slam::PreparedImages& images) { system.extract_features(images); };
     feed_.emplace(load, std::move(stamps), FeedOptions{request.realtime, 2}, std::move(extract));
   }

@@ -153,7 +153,9 @@ TEST(System, FeaturesExtractedAheadOnAnotherThreadGiveTheSameTrajectory) {
   // (sequential, so deterministic), and ThreadSanitizer checks the overlap.
   const auto& seq = test::rendered_sequence(150, false);
   const RunResult plain = run(seq, sequential_options(), 0, 60);
-  System system(seq.camera, sequential_options());
+  SystemOptions options = sequential_options();
+  options.extract_ahead = true;
+  System system(seq.camera, options);
   ASSERT_TRUE(system.can_extract_ahead());
   const auto prepared = [&](std::size_t i) {
     PreparedImages images = system.prepare(seq.frames[i].rgb, seq.frames[i].depth);
@@ -182,8 +184,11 @@ TEST(System, FeaturesExtractedAheadOnAnotherThreadGiveTheSameTrajectory) {
     EXPECT_EQ((ahead[i].T_w_c.translation() - plain.trajectory[i].T_w_c.translation()).norm(), 0.0)
         << i;
 
-  // Points limited where the frame before saw movers depend on that frame: no extraction ahead.
-  SystemOptions dense = sequential_options();
+  // Off (the default), or with points limited where the frame before saw movers (they depend on
+  // that frame): no extraction ahead.
+  System plain_system(seq.camera, sequential_options());
+  EXPECT_FALSE(plain_system.can_extract_ahead());
+  SystemOptions dense = options;
   dense.orb.moving_density = 0.5;
   System limited(seq.camera, dense);
   EXPECT_FALSE(limited.can_extract_ahead());

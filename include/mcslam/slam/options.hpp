@@ -209,8 +209,8 @@ struct SystemOptions {
   /// Run local mapping inline after each keyframe (deterministic) instead of on its own thread.
   bool sequential = false;
   /// In threaded runs (`mcslam run` without --sequential), extract each frame's points, lines
-  /// and planes on the reader's thread once the frame is due (with --realtime: once the loop has
-  /// taken the frame before), while the frame loop still tracks the frame before
+  /// and planes on the reader's thread (with --realtime once the frame is due and the loop has
+  /// taken the frame before) while the frame loop still tracks the frame before
   /// (System::extract_features); the loop then only finishes them with the motion. The
   /// features are the same; the two stages overlap on the two cores. Off by default, because
   /// the overlap also takes CPU from the other threads (measured on 2 cores, docs/crowd.md):

@@ -140,11 +140,12 @@ class System {
   /// only finishes them with the camera's motion: a run calls it on its reader's thread, and the
   /// next frame's extraction overlaps the tracking of the frame before. It has its own
   /// extractors: one thread at a time may call it, alongside process(). Does nothing (process()
-  /// then extracts) when images.problem is set or when the points depend on the frame before
-  /// (orb.moving_density > 0). Stage times: orb_extract, line_extract and plane_extract, listed
-  /// by process() as concurrent (the frame did not wait for them).
+  /// then extracts) when images.problem is set, when options.extract_ahead is off, or when the
+  /// points depend on the frame before (orb.moving_density > 0). Stage times: orb_extract,
+  /// line_extract and plane_extract, listed by process() as concurrent (the frame did not wait
+  /// for them).
   void extract_features(PreparedImages& images) const;
-  /// False when extract_features() does nothing (orb.moving_density > 0).
+  /// False when extract_features() does nothing (extract_ahead off, or orb.moving_density > 0).
   bool can_extract_ahead() const;
 
   /// Boxes for every later frame come from `source` (a model on its own thread, or a file);
