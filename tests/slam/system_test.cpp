@@ -150,9 +150,11 @@ TEST(System, SequentialModeIsDeterministic) {
 TEST(System, FeaturesExtractedAheadOnAnotherThreadGiveTheSameTrajectory) {
   // A run extracts frame k + 1's features on its reader's thread while frame k is processed
   // (System::extract_features): the poses must be the very ones of the frame's own extraction
-  // (sequential, so deterministic), and ThreadSanitizer checks the overlap.
+  // (sequential, so deterministic), and ThreadSanitizer checks the overlap. 20 frames (a few
+  // keyframes) keep the sanitizer's run short.
+  constexpr std::size_t kFrames = 20;
   const auto& seq = test::rendered_sequence(150, false);
-  const RunResult plain = run(seq, sequential_options(), 0, 60);
+  const RunResult plain = run(seq, sequential_options(), 0, static_cast<int>(kFrames));
   SystemOptions options = sequential_options();
   options.extract_ahead = true;
   System system(seq.camera, options);
@@ -164,10 +166,10 @@ TEST(System, FeaturesExtractedAheadOnAnotherThreadGiveTheSameTrajectory) {
   };
   PreparedImages next = prepared(0);
   ASSERT_NE(next.features, nullptr);
-  for (std::size_t i = 0; i < 60; ++i) {
+  for (std::size_t i = 0; i < kFrames; ++i) {
     PreparedImages images = std::move(next);
     std::thread reader([&] {
-      if (i + 1 < 60) next = prepared(i + 1);
+      if (i + 1 < kFrames) next = prepared(i + 1);
     });
     const FrameResult r = system.process(images, seq.groundtruth[i].timestamp);
     reader.join();
