@@ -151,9 +151,9 @@ TEST(System, FeaturesExtractedAheadOnAnotherThreadGiveTheSameTrajectory) {
   // A run extracts frame k + 1's features on its reader's thread while frame k is processed
   // (System::extract_features): the poses must be the very ones of the frame's own extraction
   // (sequential, so deterministic), and ThreadSanitizer checks the overlap. 20 frames (a few
-  // keyframes) keep the sanitizer's run short.
+  // keyframes), rendered alone, keep the sanitizers' runs short.
   constexpr std::size_t kFrames = 20;
-  const auto& seq = test::rendered_sequence(150, false);
+  const auto& seq = test::rendered_sequence(static_cast<int>(kFrames), false);
   const RunResult plain = run(seq, sequential_options(), 0, static_cast<int>(kFrames));
   SystemOptions options = sequential_options();
   options.extract_ahead = true;
