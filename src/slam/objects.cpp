@@ -257,6 +257,7 @@ void ObjectHandler::prepare(const Frame& frame, const std::optional<SE3>& predic
                              ObjectReport::Source::kMover);
     carried.front().source = ObjectReport::Source::kMover;
     carried.front().unconfirmed = m.unconfirmed;
+    carried.front().age = age;
     boxes.push_back(carried.front());
   }
 
@@ -395,6 +396,40 @@ std::vector<ObjectHandler::Box> ObjectHandler::propagate(
   return out;
 }
 
+void ObjectHandler::grow_movers(const features::FrameFeatures& features,
+                                const std::vector<cv::Rect2f>& plane_extent) {
+  // A moving region is found from its seeds, which cover part of the object; a rigid surface
+  // moves whole, so a frame plane with most of its points inside the region's box is the
+  // region's (the flat face of a box carried, a door, the synthetic people), and the box grows
+  // towards the plane's extent (the object coming further into view), by at most
+  // propagation_radius pixels a frame on each side: how far a person's image moves in a frame.
+  // A plane reaching farther (the floor, a wall) is only partly taken, and only while the box
+  // still holds most of it.
+  const cv::Rect2f image(0.0f, 0.0f, static_cast<float>(camera_.width),
+                         static_cast<float>(camera_.height));
+  const std::size_t n_planes = features.planes.size();
+  for (Box& box : boxes_) {
+    if (box.source != ObjectReport::Source::kMover) continue;
+    std::vector<int> inside(n_planes, 0), total(n_planes, 0);
+    for (const auto& f : features.points) {
+      if (f.plane < 0 || static_cast<std::size_t>(f.plane) >= n_planes) continue;
+      ++total[static_cast<std::size_t>(f.plane)];
+      inside[static_cast<std::size_t>(f.plane)] += contains(box.detection.box, f.keypoint.uv);
+    }
+    const auto reach = static_cast<float>(options_.propagation_radius * std::max(1, box.age));
+    const cv::Rect2f bound = grown(box.detection.box, reach, reach) & image;
+    cv::Rect2f region = box.detection.box & image;
+    for (std::size_t k = 0; k < n_planes; ++k) {
+      if (2 * inside[k] <= total[k] || plane_extent[k].area() <= 0.0f) continue;
+      cv::Rect2f extent = plane_extent[k];
+      extent.width += 1.0f;  // a box holds the pixels on its far edges too, as a region's does
+      extent.height += 1.0f;
+      region |= extent & bound;
+    }
+    box.detection.box = region;
+  }
+}
+
 void ObjectHandler::assign_features(const Frame& frame) {
   const auto& features = *frame.features;
   const DynamicsOptions& opt = options_;
@@ -414,6 +449,7 @@ void ObjectHandler::assign_features(const Frame& frame) {
     plane_extent.push_back(r & cv::Rect2f(0.f, 0.f, static_cast<float>(camera_.width),
                                           static_cast<float>(camera_.height)));
   }
+  grow_movers(features, plane_extent);
   const auto structural = [&](std::size_t box, int plane) {
     if (plane < 0 || static_cast<std::size_t>(plane) >= plane_extent.size()) return false;
     const cv::Rect2f& e = plane_extent[static_cast<std::size_t>(plane)];
@@ -841,6 +877,26 @@ void ObjectHandler::classify(const Frame& frame, const SE3& T_c_w) {
   }
 }
 
+/// Frame planes seen to move: at least `min_seeds` of their points are seeds of motion, and at
+/// least `share` of their points with evidence.
+std::vector<std::uint8_t> ObjectHandler::moving_planes(
+    const features::FrameFeatures& features, const std::vector<std::uint8_t>& seed,
+    const std::vector<std::uint8_t>& measured) const {
+  const std::size_t n_planes = features.planes.size();
+  std::vector<int> seeds(n_planes, 0), with_evidence(n_planes, 0);
+  for (std::size_t i = 0; i < features.points.size(); ++i) {
+    const int k = features.points[i].plane;
+    if (k < 0 || static_cast<std::size_t>(k) >= n_planes || !measured[i]) continue;
+    ++with_evidence[static_cast<std::size_t>(k)];
+    seeds[static_cast<std::size_t>(k)] += seed[i];
+  }
+  std::vector<std::uint8_t> moving(n_planes, 0);
+  for (std::size_t k = 0; k < n_planes; ++k)
+    moving[k] = seeds[k] >= options_.mover_min_seeds &&
+                seeds[k] >= options_.mover_seed_share * with_evidence[k];
+  return moving;
+}
+
 MoverResult ObjectHandler::find_movers(const Frame& frame, const SE3& T_c_w,
                                        const std::vector<MotionEvidence>& evidence) {
   MoverResult result;
@@ -877,13 +933,19 @@ MoverResult ObjectHandler::find_movers(const Frame& frame, const SE3& T_c_w,
   if (seeds < opt.mover_min_seeds) return result;
   // Nodes: points with depth not yet left out; a point on a frame plane (floor, wall, desk top)
   // joins a region only as a seed, so that a region never spreads along the floor a person
-  // stands on.
+  // stands on; unless the plane itself is seen to move (as many of its points with evidence
+  // are seeds as a region needs): the flat side of a box carried, a door, a cart.
+  const std::vector<std::uint8_t> moving_plane = moving_planes(*frame.features, seed, measured);
   std::vector<std::size_t> nodes;
   int with_depth = 0;
   for (std::size_t i = 0; i < n; ++i) {
     if (!points[i].has_depth() || point_excluded(i)) continue;
     ++with_depth;
-    if (seed[i] || points[i].plane < 0) nodes.push_back(i);
+    const int plane = points[i].plane;
+    const bool on_moving_plane = plane >= 0 &&
+                                 static_cast<std::size_t>(plane) < moving_plane.size() &&
+                                 moving_plane[static_cast<std::size_t>(plane)];
+    if (seed[i] || plane < 0 || on_moving_plane) nodes.push_back(i);
   }
   std::vector<int> component(n, -1);
   const double r2 = opt.mover_link_radius * opt.mover_link_radius;

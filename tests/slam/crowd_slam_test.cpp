@@ -139,15 +139,18 @@ TEST(CrowdSlam, MovingPeopleAreLeftOutStaticFeaturesKeptAndTheTrajectoryHolds) {
 // Three people; the third has no box and walks in from the right border until it fills 45 % of
 // the image (frames 165-265), while a boxed person fills another third. Its features are young
 // landmarks and last-frame points: the pose from the established landmarks keeps them out
-// (TrackerOptions::established_age). Without that, measured 0.229 m (69x the empty room); with
-// it, 0.0113 m (3.4x). The goal, 2x, is not reached: for about five frames fewer than 10
-// established landmarks are in view and everything enters at once.
+// (TrackerOptions::established_age); without that, measured 0.229 m (69x the empty room). The
+// person is a box: its front is a frame plane, which a region of motion now joins once the
+// plane is seen to move, and the region's box then grows over it as the person walks in
+// (ObjectHandler::find_movers, grow_movers). Before that, 0.0070 m (2.03x; fewer than 10
+// established landmarks in view for about five frames, and everything entered at once); with
+// it, 0.0050 m (1.43x). The goal is 2x.
 TEST(CrowdSlam, AnUndetectedPersonFillingHalfTheViewDoesNotDragThePose) {
   const RunResult r = run(*render(3, 1));
   std::printf("undetected person filling 45 %%: ATE %.4f m, tracked %d; no people %.4f m\n", r.ate,
               r.tracked, empty_room().ate);
   EXPECT_EQ(r.tracked, 300);
-  EXPECT_LE(r.ate, 5.0 * empty_room().ate);
+  EXPECT_LE(r.ate, 2.0 * empty_room().ate);
 }
 
 }  // namespace

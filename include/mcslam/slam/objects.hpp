@@ -20,7 +20,8 @@
 //     the same place in the next frame, is a moving object the detector missed. All its features
 //     are left out, the map points seen to move are reported for culling, and the region becomes a
 //     box of class "moving region" that the next frames carry forward and judge by Algorithm 1 like
-//     any other box.
+//     any other box. Points on a frame plane link only when the plane is seen to move, and a
+//     carried region's box grows over the planes it holds most of (a rigid surface moves whole).
 //  4. remember(): the tracked frame joins the history Algorithm 1 compares with.
 
 #include <cstdint>
@@ -151,6 +152,7 @@ class ObjectHandler {
     float depth_near = -1.0f, depth_far = -1.0f;
     int background_points = 0;
     int unconfirmed = 0;  ///< moving regions: frames without confirmation
+    int age = 0;          ///< moving regions: frames since the region was last seen
   };
 
   /// A moving region found without a box, carried to later frames.
@@ -166,6 +168,9 @@ class ObjectHandler {
   std::vector<Box> propagate(const std::vector<perception::Detection>& boxes, const PastFrame* from,
                              const features::FrameFeatures& to, const std::optional<SE3>& T_to_w,
                              int age, ObjectReport::Source source) const;
+  /// Grows each moving region's box towards the frame planes it holds most of.
+  void grow_movers(const features::FrameFeatures& features,
+                   const std::vector<cv::Rect2f>& plane_extent);
   /// Assigns features to boxes (structural planes, background and overlaps resolved).
   void assign_features(const Frame& frame);
   void update_exclusions();
@@ -174,6 +179,9 @@ class ObjectHandler {
   std::vector<MotionMatch> match_to_reference(const Frame& frame, const PastFrame& ref,
                                               const SE3& T_cur_ref,
                                               std::uint64_t boxes = ~std::uint64_t{0}) const;
+  std::vector<std::uint8_t> moving_planes(const features::FrameFeatures& features,
+                                          const std::vector<std::uint8_t>& seed,
+                                          const std::vector<std::uint8_t>& measured) const;
   double adaptive_threshold(const std::vector<MotionMatch>& matches, const SE3& T_cur_ref) const;
   const PastFrame* recent(std::uint64_t id) const;
   std::vector<ObjectState> box_states() const;
