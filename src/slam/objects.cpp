@@ -258,6 +258,7 @@ void ObjectHandler::prepare(const Frame& frame, const std::optional<SE3>& predic
     carried.front().source = ObjectReport::Source::kMover;
     carried.front().unconfirmed = m.unconfirmed;
     carried.front().age = age;
+    carried.front().flat = m.flat;
     boxes.push_back(carried.front());
   }
 
@@ -398,9 +399,9 @@ std::vector<ObjectHandler::Box> ObjectHandler::propagate(
 
 void ObjectHandler::grow_movers(const features::FrameFeatures& features,
                                 const std::vector<cv::Rect2f>& plane_extent) {
-  // A moving region is found from its seeds, which cover part of the object; a rigid surface
-  // moves whole, so a frame plane with most of its points inside the region's box is the
-  // region's (the flat face of a box carried, a door, the synthetic people), and the box grows
+  // A moving region found on a moving plane (find_movers) holds part of a rigid surface, which
+  // moves whole: a frame plane with most of its points inside the region's box is the region's
+  // (the flat face of a box carried, a door, the synthetic people), and the box grows
   // towards the plane's extent (the object coming further into view), by at most
   // propagation_radius pixels a frame on each side: how far a person's image moves in a frame.
   // A plane reaching farther (the floor, a wall) is only partly taken, and only while the box
@@ -409,7 +410,7 @@ void ObjectHandler::grow_movers(const features::FrameFeatures& features,
                          static_cast<float>(camera_.height));
   const std::size_t n_planes = features.planes.size();
   for (Box& box : boxes_) {
-    if (box.source != ObjectReport::Source::kMover) continue;
+    if (box.source != ObjectReport::Source::kMover || !box.flat) continue;
     std::vector<int> inside(n_planes, 0), total(n_planes, 0);
     for (const auto& f : features.points) {
       if (f.plane < 0 || static_cast<std::size_t>(f.plane) >= n_planes) continue;
@@ -838,6 +839,7 @@ void ObjectHandler::classify(const Frame& frame, const SE3& T_c_w) {
     m.detection = boxes_[b].detection;
     m.frame = frame.id;
     m.unconfirmed = decisions_[b].dynamic ? 0 : boxes_[b].unconfirmed + 1;
+    m.flat = boxes_[b].flat;
     if (m.unconfirmed < kMoverLife) kept.push_back(m);
   }
   movers_ = std::move(kept);
@@ -1008,11 +1010,15 @@ MoverResult ObjectHandler::find_movers(const Frame& frame, const SE3& T_c_w,
     d.class_id = -1;
     d.score = static_cast<float>(region_seeds) / static_cast<float>(std::max(1, region_measured));
     if (!confirmed) {
-      candidates_.push_back(Mover{d, frame.id, 0});
+      candidates_.push_back(Mover{d, frame.id, 0, false});
       continue;
     }
     float z0 = 1e9f, z1 = -1e9f;
+    bool flat = false;  // found on a moving plane
     for (std::size_t m : members) {
+      const int plane = points[m].plane;
+      flat = flat || (plane >= 0 && static_cast<std::size_t>(plane) < moving_plane.size() &&
+                      moving_plane[static_cast<std::size_t>(plane)]);
       point_mover_[m] = 1;
       if (seed[m] && landmark[m] != map::kNoId) result.moved_landmarks.push_back(landmark[m]);
       z0 = std::min(z0, points[m].depth);
@@ -1035,7 +1041,7 @@ MoverResult ObjectHandler::find_movers(const Frame& frame, const SE3& T_c_w,
     for (std::size_t b = 0; b < boxes_.size(); ++b)
       covered = covered || (state[b] != ObjectState::kStatic &&
                             perception::iou(boxes_[b].detection.box, region) > 0.5);
-    if (!covered && movers_.size() < 8) movers_.push_back(Mover{d, frame.id, 0});
+    if (!covered && movers_.size() < 8) movers_.push_back(Mover{d, frame.id, 0, flat});
   }
   if (result.any) update_exclusions();
   return result;

@@ -153,6 +153,7 @@ class ObjectHandler {
     int background_points = 0;
     int unconfirmed = 0;  ///< moving regions: frames without confirmation
     int age = 0;          ///< moving regions: frames since the region was last seen
+    bool flat = false;    ///< moving regions: found on a moving frame plane
   };
 
   /// A moving region found without a box, carried to later frames.
@@ -160,6 +161,7 @@ class ObjectHandler {
     perception::Detection detection;  ///< in frame `frame`
     std::uint64_t frame = 0;
     int unconfirmed = 0;  ///< frames since evidence last confirmed it
+    bool flat = false;    ///< found on a frame plane seen to move (grow_movers)
   };
 
   /// Brings boxes detected on frame `from` (`age` frames back) to the frame with features `to`
