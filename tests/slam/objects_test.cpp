@@ -307,6 +307,20 @@ std::vector<Spot> walked_in(std::vector<Spot> spots, float depth) {
   return spots;
 }
 
+/// Frames 5 and 6 of `spots`, the person moved (person_moved): the first makes a candidate
+/// region, the second confirms it. `flat`: the person's features lie on a frame plane.
+void find_mover(ObjectHandler& handler, const PinholeCamera& camera, const std::vector<Spot>& spots,
+                float depth, bool flat) {
+  const auto evidence = person_moved(camera, spots);
+  for (std::uint64_t id : {5, 6}) {
+    Frame frame = make_frame(id, spots, {});
+    if (flat) frame = with_flat_person(std::move(frame), camera, depth);
+    handler.prepare(frame, SE3());
+    EXPECT_EQ(handler.find_movers(frame, SE3(), evidence).any, id == 6);
+    handler.remember(frame, SE3());
+  }
+}
+
 // A mover with a flat face (a board or a box carried, a door; the synthetic people are boxes):
 // its features lie on a frame plane, and points on a plane join a region only as seeds, so that
 // a region never spreads along the floor. But this plane is seen to move (most of its points
@@ -317,13 +331,7 @@ TEST(ObjectHandler, AFlatMoverIsFoundWholeWithTheSurfaceItMovesOn) {
   ObjectHandler handler(camera, DynamicsOptions{});
   const float depth = 2.0f;
   const auto spots = scene(0.0f, depth);
-  const auto evidence = person_moved(camera, spots);
-  for (std::uint64_t id : {5, 6}) {
-    const Frame frame = with_flat_person(make_frame(id, spots, {}), camera, depth);
-    handler.prepare(frame, SE3());
-    EXPECT_EQ(handler.find_movers(frame, SE3(), evidence).any, id == 6);
-    handler.remember(frame, SE3());
-  }
+  find_mover(handler, camera, spots, depth, true);
   for (std::size_t i = 0; i < spots.size(); ++i)
     EXPECT_EQ(handler.point_excluded(i), spots[i].id >= 10000) << i;
 
@@ -342,13 +350,7 @@ TEST(ObjectHandler, AMoverFoundOffAnyPlaneDoesNotGrowOverOne) {
   ObjectHandler handler(camera, DynamicsOptions{});
   const float depth = 2.0f;
   const auto spots = scene(0.0f, depth);
-  const auto evidence = person_moved(camera, spots);
-  for (std::uint64_t id : {5, 6}) {
-    const Frame frame = make_frame(id, spots, {});
-    handler.prepare(frame, SE3());
-    EXPECT_EQ(handler.find_movers(frame, SE3(), evidence).any, id == 6);
-    handler.remember(frame, SE3());
-  }
+  find_mover(handler, camera, spots, depth, false);
   const auto wider = walked_in(spots, depth);
   const Frame next = with_flat_person(make_frame(7, wider, {}), camera, depth);
   handler.prepare(next, SE3());
