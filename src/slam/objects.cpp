@@ -879,8 +879,8 @@ void ObjectHandler::classify(const Frame& frame, const SE3& T_c_w) {
   }
 }
 
-/// Frame planes seen to move: at least `min_seeds` of their points are seeds of motion, and at
-/// least `share` of their points with evidence.
+/// Frame planes seen to move: their points with evidence pass a region's test (at least
+/// dynamics.mover_min_seeds seeds, and at least dynamics.mover_seed_share of them seeds).
 std::vector<std::uint8_t> ObjectHandler::moving_planes(
     const features::FrameFeatures& features, const std::vector<std::uint8_t>& seed,
     const std::vector<std::uint8_t>& measured) const {
@@ -938,16 +938,17 @@ MoverResult ObjectHandler::find_movers(const Frame& frame, const SE3& T_c_w,
   // stands on; unless the plane itself is seen to move (as many of its points with evidence
   // are seeds as a region needs): the flat side of a box carried, a door, a cart.
   const std::vector<std::uint8_t> moving_plane = moving_planes(*frame.features, seed, measured);
+  const auto on_moving_plane = [&](std::size_t i) {
+    const int plane = points[i].plane;
+    return plane >= 0 && static_cast<std::size_t>(plane) < moving_plane.size() &&
+           moving_plane[static_cast<std::size_t>(plane)] != 0;
+  };
   std::vector<std::size_t> nodes;
   int with_depth = 0;
   for (std::size_t i = 0; i < n; ++i) {
     if (!points[i].has_depth() || point_excluded(i)) continue;
     ++with_depth;
-    const int plane = points[i].plane;
-    const bool on_moving_plane = plane >= 0 &&
-                                 static_cast<std::size_t>(plane) < moving_plane.size() &&
-                                 moving_plane[static_cast<std::size_t>(plane)];
-    if (seed[i] || plane < 0 || on_moving_plane) nodes.push_back(i);
+    if (seed[i] || points[i].plane < 0 || on_moving_plane(i)) nodes.push_back(i);
   }
   std::vector<int> component(n, -1);
   const double r2 = opt.mover_link_radius * opt.mover_link_radius;
@@ -1016,9 +1017,7 @@ MoverResult ObjectHandler::find_movers(const Frame& frame, const SE3& T_c_w,
     float z0 = 1e9f, z1 = -1e9f;
     bool flat = false;  // found on a moving plane
     for (std::size_t m : members) {
-      const int plane = points[m].plane;
-      flat = flat || (plane >= 0 && static_cast<std::size_t>(plane) < moving_plane.size() &&
-                      moving_plane[static_cast<std::size_t>(plane)]);
+      flat = flat || on_moving_plane(m);
       point_mover_[m] = 1;
       if (seed[m] && landmark[m] != map::kNoId) result.moved_landmarks.push_back(landmark[m]);
       z0 = std::min(z0, points[m].depth);

@@ -20,8 +20,9 @@
 //     the same place in the next frame, is a moving object the detector missed. All its features
 //     are left out, the map points seen to move are reported for culling, and the region becomes a
 //     box of class "moving region" that the next frames carry forward and judge by Algorithm 1 like
-//     any other box. Points on a frame plane link only when the plane is seen to move, and a
-//     carried region's box grows over the planes it holds most of (a rigid surface moves whole).
+//     any other box. Points on a frame plane link only when the plane is seen to move, and the
+//     carried box of a region found on a moving plane grows over the planes it holds most of (a
+//     rigid surface moves whole).
 //  4. remember(): the tracked frame joins the history Algorithm 1 compares with.
 
 #include <cstdint>
