@@ -409,14 +409,18 @@ void ObjectHandler::grow_movers(const features::FrameFeatures& features,
   const cv::Rect2f image(0.0f, 0.0f, static_cast<float>(camera_.width),
                          static_cast<float>(camera_.height));
   const std::size_t n_planes = features.planes.size();
+  const auto plane_of = [&](const features::PointFeature& f) -> std::optional<std::size_t> {
+    if (f.plane < 0 || static_cast<std::size_t>(f.plane) >= n_planes) return std::nullopt;
+    return static_cast<std::size_t>(f.plane);
+  };
+  std::vector<int> total(n_planes, 0);
+  for (const auto& f : features.points)
+    if (const auto k = plane_of(f)) ++total[*k];
   for (Box& box : boxes_) {
     if (box.source != ObjectReport::Source::kMover || !box.flat) continue;
-    std::vector<int> inside(n_planes, 0), total(n_planes, 0);
-    for (const auto& f : features.points) {
-      if (f.plane < 0 || static_cast<std::size_t>(f.plane) >= n_planes) continue;
-      ++total[static_cast<std::size_t>(f.plane)];
-      inside[static_cast<std::size_t>(f.plane)] += contains(box.detection.box, f.keypoint.uv);
-    }
+    std::vector<int> inside(n_planes, 0);
+    for (const auto& f : features.points)
+      if (const auto k = plane_of(f)) inside[*k] += contains(box.detection.box, f.keypoint.uv);
     const auto reach = static_cast<float>(options_.propagation_radius * std::max(1, box.age));
     const cv::Rect2f bound = grown(box.detection.box, reach, reach) & image;
     cv::Rect2f region = box.detection.box & image;
