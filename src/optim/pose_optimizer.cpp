@@ -1,12 +1,9 @@
 #include "mcslam/optim/pose_optimizer.hpp"
 
-#include <ceres/loss_function.h>
-#include <ceres/problem.h>
-#include <ceres/solver.h>
-
 #include <cmath>
-#include <memory>
+#include <deque>
 
+#include "mcslam/optim/pose_solver.hpp"
 #include "mcslam/optim/se3_manifold.hpp"
 
 namespace mcslam::optim {
@@ -36,89 +33,88 @@ PoseOptimizationResult optimize_pose(const PinholeCamera& camera, const SE3& ini
   result.plane_inlier.assign(planes.size(), true);
   result.constrained_point_inlier.assign(constrained_points.size(), true);
   result.constrained_line_inlier.assign(constrained_lines.size(), true);
-  // Constraint terms alone could never fix the pose (see the check before Solve), so they do not
-  // count here either.
+  // Constraint terms alone could never fix the pose (see the check before each solve), so they do
+  // not count here either.
   if (points.empty() && lines.empty() && planes.empty()) return result;
 
   double pose[kPoseSize];
   pose_to_block(initial_T_c_w, pose);
-  SE3Manifold manifold;
-  ceres::HuberLoss huber_rgbd(std::sqrt(options.chi2_rgbd));
-  ceres::HuberLoss huber_mono(std::sqrt(options.chi2_mono));
-  ceres::HuberLoss huber_line(std::sqrt(options.chi2_line));
-  ceres::HuberLoss huber_plane(std::sqrt(options.chi2_plane));
-  ceres::HuberLoss huber_constraint(std::sqrt(options.chi2_constraint));
+  // The residual blocks are made once; each round solves with the inliers of the round before.
+  // (std::deque: cost functions cannot be moved, and its elements never are.)
+  std::deque<PoseOnlyReprojectionError<3>> rgbd_terms;
+  std::deque<PoseOnlyReprojectionError<2>> mono_terms;
+  std::vector<const ceres::CostFunction*> point_terms(points.size());
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const auto& obs = points[i];
+    if (obs.measurement.has_depth())
+      point_terms[i] = &rgbd_terms.emplace_back(camera, obs.measurement, obs.p_w);
+    else
+      point_terms[i] = &mono_terms.emplace_back(camera, obs.measurement, obs.p_w);
+  }
+  std::deque<PoseOnlyLineError> line_terms;
+  for (const auto& obs : lines)
+    line_terms.emplace_back(camera, obs.measurement, obs.start_w, obs.end_w);
+  std::deque<PoseOnlyPlaneError> plane_terms;
+  for (const auto& obs : planes) plane_terms.emplace_back(obs.measurement, obs.plane_w);
+  std::deque<PoseOnlyConstrainedPointError> constrained_point_terms;
+  for (const auto& m : constrained_points) constrained_point_terms.emplace_back(m);
+  std::deque<PoseOnlyConstrainedLineError> constrained_line_terms;
+  for (const auto& m : constrained_lines) constrained_line_terms.emplace_back(m);
 
-  ceres::Solver::Options solver_options;
-  solver_options.linear_solver_type = ceres::DENSE_QR;
-  solver_options.max_num_iterations = options.iterations_per_round;
-  solver_options.logging_type = ceres::SILENT;
-  solver_options.minimizer_progress_to_stdout = false;
-  solver_options.num_threads = 1;
+  PoseSolverOptions solver_options;
+  solver_options.max_iterations = options.iterations_per_round;
+  const double delta_rgbd = std::sqrt(options.chi2_rgbd);
+  const double delta_mono = std::sqrt(options.chi2_mono);
+  const double delta_line = std::sqrt(options.chi2_line);
+  const double delta_plane = std::sqrt(options.chi2_plane);
+  const double delta_constraint = std::sqrt(options.chi2_constraint);
+  std::vector<PoseTerm> terms;
+  terms.reserve(points.size() + lines.size() + planes.size() + constrained_points.size() +
+                constrained_lines.size());
 
   for (int round = 0; round < options.rounds; ++round) {
     const bool robust = round < options.robust_rounds;
-    ceres::Problem::Options problem_options;
-    problem_options.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
-    problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
-    ceres::Problem ceres_problem(problem_options);
-    ceres_problem.AddParameterBlock(pose, kPoseSize, &manifold);
+    const auto huber = [robust](double delta) { return robust ? delta : 0.0; };
+    terms.clear();
     int active = 0;
     const SE3 T_start = block_to_pose(pose);
     for (std::size_t i = 0; i < points.size(); ++i) {
       if (!result.inlier[i]) continue;
       const auto& obs = points[i];
-      // A residual that cannot be evaluated at the start point stops Ceres before its first
-      // step: such a point is an outlier of this round, never a reason to keep the start pose.
+      // A residual that cannot be evaluated at the start point would stop the solve before its
+      // first step: such a point is an outlier of this round, never a reason to keep the start
+      // pose.
       if (!((T_start * obs.p_w).z() > kMinPointDepth)) {
         result.inlier[i] = false;
         ++result.behind_camera;
         continue;
       }
-      if (obs.measurement.has_depth()) {
-        ceres_problem.AddResidualBlock(
-            new PoseOnlyReprojectionError<3>(camera, obs.measurement, obs.p_w),
-            robust ? &huber_rgbd : nullptr, pose);
-      } else {
-        ceres_problem.AddResidualBlock(
-            new PoseOnlyReprojectionError<2>(camera, obs.measurement, obs.p_w),
-            robust ? &huber_mono : nullptr, pose);
-      }
+      terms.push_back(
+          {point_terms[i], huber(obs.measurement.has_depth() ? delta_rgbd : delta_mono)});
       ++active;
     }
     for (std::size_t i = 0; i < lines.size(); ++i) {
       if (!result.line_inlier[i]) continue;
-      const auto& obs = lines[i];
-      ceres_problem.AddResidualBlock(
-          new PoseOnlyLineError(camera, obs.measurement, obs.start_w, obs.end_w),
-          robust ? &huber_line : nullptr, pose);
+      terms.push_back({&line_terms[i], huber(delta_line)});
       ++active;
     }
     for (std::size_t i = 0; i < planes.size(); ++i) {
       if (!result.plane_inlier[i]) continue;
-      const auto& obs = planes[i];
-      ceres_problem.AddResidualBlock(new PoseOnlyPlaneError(obs.measurement, obs.plane_w),
-                                     robust ? &huber_plane : nullptr, pose);
+      terms.push_back({&plane_terms[i], huber(delta_plane)});
       ++active;
     }
-    for (std::size_t i = 0; i < constrained_points.size(); ++i) {
-      if (!result.constrained_point_inlier[i]) continue;
-      ceres_problem.AddResidualBlock(new PoseOnlyConstrainedPointError(constrained_points[i]),
-                                     robust ? &huber_constraint : nullptr, pose);
-    }
-    for (std::size_t i = 0; i < constrained_lines.size(); ++i) {
-      if (!result.constrained_line_inlier[i]) continue;
-      ceres_problem.AddResidualBlock(new PoseOnlyConstrainedLineError(constrained_lines[i]),
-                                     robust ? &huber_constraint : nullptr, pose);
-    }
+    for (std::size_t i = 0; i < constrained_points.size(); ++i)
+      if (result.constrained_point_inlier[i])
+        terms.push_back({&constrained_point_terms[i], huber(delta_constraint)});
+    for (std::size_t i = 0; i < constrained_lines.size(); ++i)
+      if (result.constrained_line_inlier[i])
+        terms.push_back({&constrained_line_terms[i], huber(delta_constraint)});
     // Every kind of landmark gives at least two independent equations, so three observations of
     // any mix are the least that can fix the six degrees of freedom. The constraint terms are not
     // counted: however many there are, they leave the position along their plane and the rotation
     // about its normal free.
     if (active < 3) break;
-    ceres::Solver::Summary summary;
-    ceres::Solve(solver_options, &ceres_problem, &summary);
-    if (!summary.IsSolutionUsable()) {
+    if (!solve_pose(terms, pose, solver_options).usable) {
       pose_to_block(T_start, pose);
       result.failed = true;
       break;

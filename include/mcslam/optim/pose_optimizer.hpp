@@ -1,5 +1,6 @@
 #pragma once
-// Pose-only optimisation of one frame against fixed world points (Ceres, Huber loss, rounds of
+// Pose-only optimisation of one frame against fixed world points (Levenberg-Marquardt on the
+// pose's tangent, pose_solver.hpp; Huber loss, rounds of
 // outlier rejection by a chi-square test, as ORB-SLAM2's PoseOptimization), lines and planes, and
 // the features of constrained moving objects (constraint_residual.hpp).
 
@@ -71,8 +72,8 @@ struct PoseOptimizationResult {
   int num_plane_inliers = 0;
   int num_constrained_point_inliers = 0;
   int num_constrained_line_inliers = 0;
-  /// Ceres found no usable solution (an evaluation failed at the start point, or the solver
-  /// failed): T_c_w is the last usable pose (the initial one when the first round failed) and
+  /// A round found no usable solution (its cost could not be evaluated at its start pose):
+  /// T_c_w is the last usable pose (the initial one when the first round failed) and
   /// must not be taken for an optimised one.
   bool failed = false;
   /// Point observations left out of a round because the point was behind the camera (or within
