@@ -1,34 +1,12 @@
 #include "mcslam/optim/bundle_adjustment.hpp"
 
-#include <ceres/iteration_callback.h>
-#include <ceres/loss_function.h>
-#include <ceres/problem.h>
-#include <ceres/solver.h>
-
 #include <cmath>
+#include <deque>
 
+#include "mcslam/optim/bundle_solver.hpp"
 #include "mcslam/optim/se3_manifold.hpp"
 
 namespace mcslam::optim {
-namespace {
-
-class AbortCallback final : public ceres::IterationCallback {
- public:
-  explicit AbortCallback(const std::atomic<bool>* flag) : flag_(flag) {}
-  ceres::CallbackReturnType operator()(const ceres::IterationSummary&) override {
-    if (flag_ != nullptr && flag_->load(std::memory_order_relaxed)) {
-      aborted = true;
-      return ceres::SOLVER_TERMINATE_SUCCESSFULLY;
-    }
-    return ceres::SOLVER_CONTINUE;
-  }
-  bool aborted = false;
-
- private:
-  const std::atomic<bool>* flag_;
-};
-
-}  // namespace
 
 std::optional<std::string> BundleAdjustmentOptions::check() const {
   if (robust_iterations < 1) return "local_ba.robust_iterations must be at least 1";
@@ -53,14 +31,8 @@ BundleAdjustmentResult bundle_adjust(const PinholeCamera& camera, BundleAdjustme
   std::vector<double> poses(problem.poses.size() * kPoseSize);
   for (std::size_t i = 0; i < problem.poses.size(); ++i)
     pose_to_block(problem.poses[i], &poses[i * kPoseSize]);
-  SE3Manifold manifold;
-  PlaneManifold plane_manifold;
-  SegmentManifold segment_manifold;
-  ceres::HuberLoss huber_rgbd(std::sqrt(options.chi2_rgbd));
-  ceres::HuberLoss huber_mono(std::sqrt(options.chi2_mono));
-  ceres::HuberLoss huber_line(std::sqrt(options.chi2_line));
-  ceres::HuberLoss huber_plane(std::sqrt(options.chi2_plane));
-  AbortCallback callback(abort);
+  const PlaneManifold plane_manifold;
+  const SegmentManifold segment_manifold;
 
   const auto chi2_of = [&](std::size_t k) {
     const auto& obs = problem.observations[k];
@@ -105,30 +77,45 @@ BundleAdjustmentResult bundle_adjust(const PinholeCamera& camera, BundleAdjustme
   std::vector<Eigen::Matrix<double, 6, 1>> segments(problem.lines.size());
   for (std::size_t i = 0; i < problem.lines.size(); ++i)
     segments[i] << problem.lines[i].start, problem.lines[i].end;
+  // Landmark blocks: points first, then segments, then planes. Ownership of the residual blocks
+  // stays here (std::deque: cost functions cannot be moved, and its elements never are).
+  const std::size_t first_segment = problem.points.size();
+  const std::size_t first_plane = first_segment + segments.size();
+  std::deque<ReprojectionError<3>> rgbd_terms;
+  std::deque<ReprojectionError<2>> mono_terms;
+  std::vector<const ceres::CostFunction*> point_terms(problem.observations.size());
+  for (std::size_t k = 0; k < problem.observations.size(); ++k) {
+    const auto& m = problem.observations[k].measurement;
+    point_terms[k] =
+        m.has_depth() ? static_cast<const ceres::CostFunction*>(&rgbd_terms.emplace_back(camera, m))
+                      : &mono_terms.emplace_back(camera, m);
+  }
+  std::deque<LineSegmentError> line_terms;
+  for (const auto& obs : problem.line_observations)
+    line_terms.emplace_back(camera, obs.measurement);
+  std::deque<PlaneError> plane_terms;
+  for (const auto& obs : problem.plane_observations) plane_terms.emplace_back(obs.measurement);
+  const double delta_rgbd = std::sqrt(options.chi2_rgbd);
+  const double delta_mono = std::sqrt(options.chi2_mono);
+  const double delta_line = std::sqrt(options.chi2_line);
+  const double delta_plane = std::sqrt(options.chi2_plane);
+  std::vector<BundleTerm> terms;
+  std::vector<BundleLandmark> landmarks;
   for (int stage = 0; stage < 2; ++stage) {
     const bool robust = stage == 0;
     const int iterations = robust ? options.robust_iterations : options.refine_iterations;
     if (iterations == 0 || result.aborted) break;
-    ceres::Problem::Options problem_options;
-    problem_options.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
-    problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
-    ceres::Problem ceres_problem(problem_options);
+    const auto huber = [robust](double delta) { return robust ? delta : 0.0; };
+    terms.clear();
     for (std::size_t k = 0; k < problem.observations.size(); ++k) {
       if (!result.inlier[k]) continue;
       const auto& obs = problem.observations[k];
-      double* pose = &poses[static_cast<std::size_t>(obs.pose) * kPoseSize];
-      double* point = problem.points[static_cast<std::size_t>(obs.point)].data();
-      if (obs.measurement.has_depth()) {
-        ceres_problem.AddResidualBlock(new ReprojectionError<3>(camera, obs.measurement),
-                                       robust ? &huber_rgbd : nullptr, pose, point);
-      } else {
-        ceres_problem.AddResidualBlock(new ReprojectionError<2>(camera, obs.measurement),
-                                       robust ? &huber_mono : nullptr, pose, point);
-      }
+      terms.push_back({point_terms[k], obs.pose, obs.point,
+                       huber(obs.measurement.has_depth() ? delta_rgbd : delta_mono)});
     }
     // A line's endpoints can slide along the line with (almost) no change of residual (7). The
     // robust stage leaves them free to slide (its damped steps keep the normal equations
-    // regular); the refinement moves them only across the line (SegmentManifold, set below).
+    // regular); the refinement moves them only across the line (SegmentManifold, below).
     // With that freedom the refinement ran to its limit of iterations on freiburg1_rpy (a
     // median of 10 in Ceres's count); without it, a median of 3. Pinning them in the robust
     // stage too was measured worse on the synthetic crowds (the undetected person 0.0113 ->
@@ -136,45 +123,30 @@ BundleAdjustmentResult bundle_adjust(const PinholeCamera& camera, BundleAdjustme
     for (std::size_t k = 0; k < problem.line_observations.size(); ++k) {
       if (!result.line_inlier[k]) continue;
       const auto& obs = problem.line_observations[k];
-      double* pose = &poses[static_cast<std::size_t>(obs.pose) * kPoseSize];
-      double* segment = segments[static_cast<std::size_t>(obs.line)].data();
-      ceres_problem.AddResidualBlock(new LineSegmentError(camera, obs.measurement),
-                                     robust ? &huber_line : nullptr, pose, segment);
+      terms.push_back({&line_terms[k], obs.pose, static_cast<int>(first_segment) + obs.line,
+                       huber(delta_line)});
     }
     for (std::size_t k = 0; k < problem.plane_observations.size(); ++k) {
       if (!result.plane_inlier[k]) continue;
       const auto& obs = problem.plane_observations[k];
-      double* pose = &poses[static_cast<std::size_t>(obs.pose) * kPoseSize];
-      double* plane = problem.planes[static_cast<std::size_t>(obs.plane)].data();
-      ceres_problem.AddResidualBlock(new PlaneError(obs.measurement),
-                                     robust ? &huber_plane : nullptr, pose, plane);
+      terms.push_back({&plane_terms[k], obs.pose, static_cast<int>(first_plane) + obs.plane,
+                       huber(delta_plane)});
     }
+    landmarks.clear();
+    for (Eigen::Vector3d& point : problem.points) landmarks.push_back({point.data(), 3, nullptr});
+    for (auto& segment : segments)
+      landmarks.push_back({segment.data(), 6, robust ? nullptr : &segment_manifold});
     for (Eigen::Vector4d& plane : problem.planes) {
-      if (!ceres_problem.HasParameterBlock(plane.data())) continue;
       // The manifold keeps |n| = 1 only if it starts there.
       plane.head<3>().normalize();
-      ceres_problem.SetManifold(plane.data(), &plane_manifold);
+      landmarks.push_back({plane.data(), 4, &plane_manifold});
     }
-    for (auto& segment : segments)
-      if (!robust && ceres_problem.HasParameterBlock(segment.data()))
-        ceres_problem.SetManifold(segment.data(), &segment_manifold);
-    for (std::size_t i = 0; i < problem.poses.size(); ++i) {
-      double* pose = &poses[i * kPoseSize];
-      if (!ceres_problem.HasParameterBlock(pose)) continue;
-      ceres_problem.SetManifold(pose, &manifold);
-      if (problem.pose_fixed[i]) ceres_problem.SetParameterBlockConstant(pose);
-    }
-    ceres::Solver::Options solver_options;
-    solver_options.linear_solver_type =
-        ceres::IsSparseLinearAlgebraLibraryTypeAvailable(ceres::SUITE_SPARSE) ? ceres::SPARSE_SCHUR
-                                                                              : ceres::DENSE_SCHUR;
-    solver_options.max_num_iterations = iterations;
-    solver_options.logging_type = ceres::SILENT;
-    solver_options.num_threads = options.num_threads;
-    solver_options.callbacks.push_back(&callback);
-    ceres::Solver::Summary summary;
-    ceres::Solve(solver_options, &ceres_problem, &summary);
-    if (!summary.IsSolutionUsable()) {
+    BundleSolverOptions solver_options;
+    solver_options.max_iterations = iterations;
+    solver_options.abort = abort;
+    const BundleSolverSummary summary =
+        solve_bundle(terms, poses.data(), problem.pose_fixed, landmarks, solver_options);
+    if (!summary.usable) {
       problem.points = points_before;
       problem.lines = lines_before;
       problem.planes = planes_before;
@@ -187,8 +159,8 @@ BundleAdjustmentResult bundle_adjust(const PinholeCamera& camera, BundleAdjustme
     }
     if (stage == 0) result.initial_cost = summary.initial_cost;
     result.final_cost = summary.final_cost;
-    result.iterations += static_cast<int>(summary.iterations.size());
-    result.aborted = callback.aborted;
+    result.iterations += summary.iterations;
+    result.aborted = summary.aborted;
 
     // Outliers: large error or behind the camera. They stay out of the refinement stage.
     for (std::size_t k = 0; k < problem.observations.size(); ++k)

@@ -5,6 +5,7 @@
 
 #include "mcslam/core/se3.hpp"
 #include "mcslam/optim/se3_manifold.hpp"
+#include "optim/huber.hpp"
 
 namespace mcslam::optim {
 namespace {
@@ -57,13 +58,10 @@ bool evaluate(const std::vector<PoseTerm>& terms, const double* pose, bool norma
     double s = 0.0;
     for (int k = 0; k < dim; ++k) s += residual[k] * residual[k];
     if (!std::isfinite(s)) return false;
-    // Huber: rho(s) = s inside, 2 delta sqrt(s) - delta^2 outside, rho' = min(1, delta / sqrt(s)).
-    const double delta = term.huber_delta;
-    const bool outside = delta > 0.0 && s > delta * delta;
-    const double root = outside ? std::sqrt(s) : 0.0;
-    out.cost += 0.5 * (outside ? 2.0 * delta * root - delta * delta : s);
+    const HuberTerm loss = huber(s, term.huber_delta);
+    out.cost += 0.5 * loss.rho;
     if (!normal) continue;
-    const double w = outside ? delta / root : 1.0;
+    const double w = loss.weight;
     bool finite = false;
     switch (dim) {
       case 1:
