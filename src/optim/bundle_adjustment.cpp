@@ -13,7 +13,6 @@ std::optional<std::string> BundleAdjustmentOptions::check() const {
   if (refine_iterations < 0) return "local_ba.refine_iterations must not be negative";
   if (!(chi2_rgbd > 0.0) || !(chi2_mono > 0.0) || !(chi2_line > 0.0) || !(chi2_plane > 0.0))
     return "local_ba chi-square thresholds must be positive";
-  if (num_threads < 1) return "local_ba.num_threads must be at least 1";
   return std::nullopt;
 }
 

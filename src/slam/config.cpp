@@ -170,7 +170,6 @@ std::vector<Field> mcslam_fields(PinholeCamera& c, SystemOptions& o) {
       {"mapper.global_ba_iterations", &m.global_ba_iterations},
       {"mapper.ba.robust_iterations", &m.ba.robust_iterations},
       {"mapper.ba.refine_iterations", &m.ba.refine_iterations},
-      {"mapper.ba.num_threads", &m.ba.num_threads},
       {"place.vocabulary", &o.place.vocabulary},
       {"place.direct_levels_up", &o.place.direct_levels_up},
       {"loop.enabled", &o.place.loop.enabled},
@@ -290,6 +289,9 @@ void apply_config(io::ConfigFile& file, PinholeCamera& camera, SystemOptions& op
   for (const char* ignored :
        {"Viewer", "Camera.RGB", "Camera.type", "Camera.name", "PointCloudMapping", "File.version"})
     file.mark_used(ignored);
+  // Retired: bundle adjustment runs on one thread since it left Ceres. Accepted and ignored, so
+  // that the config.yaml of an earlier run still loads.
+  file.mark_used("mapper.ba.num_threads");
 
   const auto unused = file.unused_keys();
   if (!unused.empty()) {

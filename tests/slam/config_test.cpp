@@ -60,6 +60,18 @@ TEST(Config, ReadsOrbSlam2SettingsFile) {
   EXPECT_EQ(options.tracker.max_frames_between_keyframes, 30);
 }
 
+TEST(Config, TheRetiredBundleAdjustmentThreadsKeyOfAnEarlierRunStillLoads) {
+  // config.yaml of runs before bundle adjustment left Ceres has mapper.ba.num_threads.
+  io::ConfigFile file = io::ConfigFile::from_string(
+      "camera: {fx: 500, fy: 500, cx: 320, cy: 240, width: 640, height: 480}\n"
+      "mapper:\n  ba:\n    robust_iterations: 4\n    num_threads: 1\n",
+      "config.yaml");
+  PinholeCamera camera;
+  SystemOptions options;
+  EXPECT_EQ(message_of([&] { apply_config(file, camera, options); }), "");
+  EXPECT_EQ(options.mapper.ba.robust_iterations, 4);
+}
+
 TEST(Config, UnknownKeysAndBadValuesAreErrorsNamingTheFile) {
   PinholeCamera camera;
   SystemOptions options;

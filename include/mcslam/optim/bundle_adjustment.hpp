@@ -1,6 +1,7 @@
 #pragma once
 // Bundle adjustment over keyframe poses and world points (local BA of the mapper). The problem
-// is plain data copied out of the map, so the map stays unlocked while Ceres runs.
+// is plain data copied out of the map, so the map stays unlocked while the solver
+// (bundle_solver.hpp) runs.
 
 #include <atomic>
 #include <optional>
@@ -54,7 +55,6 @@ struct BundleAdjustmentOptions {
   double chi2_mono = 5.991;
   double chi2_line = 5.991;
   double chi2_plane = 7.815;
-  int num_threads = 1;
   std::optional<std::string> check() const;
 };
 
@@ -63,7 +63,8 @@ struct BundleAdjustmentResult {
   std::vector<bool> line_inlier;
   std::vector<bool> plane_inlier;
   bool aborted = false;
-  /// Ceres found no usable solution: the problem's poses and landmarks are left as they were
+  /// The solver found no usable solution (the cost could not be evaluated at the start): the
+  /// problem's poses and landmarks are left as they were
   /// given, and the caller must not apply them.
   bool failed = false;
   /// Point observations left out from the start: the point was behind the camera (or within
