@@ -1,7 +1,9 @@
 #include "mcslam/optim/bundle_solver.hpp"
 
+#include <Eigen/Sparse>
 #include <algorithm>
 #include <cmath>
+#include <unordered_map>
 
 #include "mcslam/core/se3.hpp"
 #include "mcslam/optim/se3_manifold.hpp"
@@ -163,11 +165,83 @@ void damp(Matrix& H, double radius) {
     H(i, i) += std::clamp(H(i, i), kMinDiagonal, kMaxDiagonal) / radius;
 }
 
+/// The poses' system after the landmarks' elimination, S dp = b, by 6x6 blocks of pose pairs
+/// (upper triangle). Dense up to kDenseLimit free poses (a local window, where every keyframe
+/// sees most others); beyond, sparse with a fill-reducing ordering (a whole map's adjustment,
+/// where a keyframe sees its neighbours only: the dense factorisation would grow with the cube of
+/// the map's size).
+class ReducedSystem {
+ public:
+  static constexpr int kDenseLimit = 96;
+
+  explicit ReducedSystem(int poses)
+      : poses_(poses), dense_(poses <= kDenseLimit), b_(Eigen::VectorXd::Zero(6 * poses)) {
+    if (dense_) S_ = Eigen::MatrixXd::Zero(6 * poses, 6 * poses);
+  }
+
+  /// S(row, col) += M for row <= col (in pose indices).
+  void add(int row, int col, const Matrix6d& M) {
+    if (dense_) {
+      S_.block<6, 6>(6 * row, 6 * col) += M;
+      return;
+    }
+    const auto [it, fresh] = blocks_.try_emplace(static_cast<long>(row) * poses_ + col);
+    if (fresh) it->second.setZero();
+    it->second += M;
+  }
+  /// The contribution M of the pair of terms (a on pose pa, c on pose pc) and of its mirror.
+  void subtract_pair(int pa, int pc, bool same_term, const Matrix6d& M) {
+    if (same_term)
+      add(pa, pa, -M);
+    else if (pa < pc)
+      add(pa, pc, -M);
+    else if (pa > pc)
+      add(pc, pa, -M.transpose());
+    else
+      add(pa, pa, -(M + M.transpose()));
+  }
+  Eigen::VectorXd& rhs() { return b_; }
+
+  bool solve(Eigen::VectorXd& dp) const {
+    if (poses_ == 0) {  // every pose fixed: the landmarks alone move
+      dp.resize(0);
+      return true;
+    }
+    if (dense_) {
+      const Eigen::LDLT<Eigen::MatrixXd, Eigen::Upper> ldlt(S_);
+      if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) return false;
+      dp = ldlt.solve(b_);
+      return dp.allFinite();
+    }
+    std::vector<Eigen::Triplet<double>> entries;
+    entries.reserve(blocks_.size() * 36);
+    for (const auto& [key, M] : blocks_) {
+      const int row = static_cast<int>(key / poses_), col = static_cast<int>(key % poses_);
+      for (int i = 0; i < 6; ++i)
+        for (int j = row == col ? i : 0; j < 6; ++j)
+          entries.emplace_back(6 * row + i, 6 * col + j, M(i, j));
+    }
+    Eigen::SparseMatrix<double> S(6 * poses_, 6 * poses_);
+    S.setFromTriplets(entries.begin(), entries.end());
+    const Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Upper> ldlt(S);
+    if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().minCoeff() > 0.0)) return false;
+    dp = ldlt.solve(b_);
+    return dp.allFinite();
+  }
+
+ private:
+  int poses_;
+  bool dense_;
+  Eigen::MatrixXd S_;
+  std::unordered_map<long, Matrix6d> blocks_;
+  Eigen::VectorXd b_;
+};
+
 /// Folds landmark l (T tangent unknowns; Eigen::Dynamic: its size at run time) into the poses'
 /// system S dp = b: S -= W C^-1 W^T over pairs of its terms, b += W C^-1 g_l.
 template <int T>
 void eliminate(const std::vector<BundleTerm>& terms, const Layout& layout, const System& sys,
-               std::size_t l, const MatrixL& C_inverse, Eigen::MatrixXd& S, Eigen::VectorXd& b) {
+               std::size_t l, const MatrixL& C_inverse, ReducedSystem& S) {
   constexpr int kCols = T == Eigen::Dynamic ? kMaxLandmark : T;
   using Square = Eigen::Matrix<double, T, T, 0, kCols, kCols>;
   using Coupling = Eigen::Matrix<double, 6, T, 0, 6, kCols>;
@@ -180,15 +254,14 @@ void eliminate(const std::vector<BundleTerm>& terms, const Layout& layout, const
     const int pa = layout.free_index[static_cast<std::size_t>(ta.pose)];
     if (pa < 0) continue;
     const Coupling Y = Coupling(sys.W[static_cast<std::size_t>(own[a])].leftCols(t)) * C_inv;
-    b.segment<6>(6 * pa).noalias() += Y * g;
+    S.rhs().segment<6>(6 * pa).noalias() += Y * g;
     for (std::size_t c = a; c < own.size(); ++c) {
       const BundleTerm& tc = terms[static_cast<std::size_t>(own[c])];
       const int pc = layout.free_index[static_cast<std::size_t>(tc.pose)];
       if (pc < 0) continue;
-      const Matrix6d M =
-          Y * Coupling(sys.W[static_cast<std::size_t>(own[c])].leftCols(t)).transpose();
-      S.block<6, 6>(6 * pa, 6 * pc) -= M;
-      if (c != a) S.block<6, 6>(6 * pc, 6 * pa) -= M.transpose();
+      S.subtract_pair(
+          pa, pc, c == a,
+          Y * Coupling(sys.W[static_cast<std::size_t>(own[c])].leftCols(t)).transpose());
     }
   }
 }
@@ -197,14 +270,12 @@ void eliminate(const std::vector<BundleTerm>& terms, const Layout& layout, const
 /// landmark's in dl), the landmarks eliminated; false when a system is not positive definite.
 bool step(const std::vector<BundleTerm>& terms, const Layout& layout, const System& sys,
           double radius, Eigen::VectorXd& dp, std::vector<VectorL>& dl) {
-  const Eigen::Index n = 6 * layout.free_poses;
-  Eigen::MatrixXd S = Eigen::MatrixXd::Zero(n, n);
-  Eigen::VectorXd b(n);
+  ReducedSystem S(layout.free_poses);
   for (int p = 0; p < layout.free_poses; ++p) {
     Matrix6d A = sys.Hpp[static_cast<std::size_t>(p)];
     damp(A, radius);
-    S.block<6, 6>(6 * p, 6 * p) = A;
-    b.segment<6>(6 * p) = -sys.gp[static_cast<std::size_t>(p)];
+    S.add(p, p, A);
+    S.rhs().segment<6>(6 * p) = -sys.gp[static_cast<std::size_t>(p)];
   }
   std::vector<MatrixL> C_inverse(sys.Hll.size());
   for (std::size_t l = 0; l < sys.Hll.size(); ++l) {
@@ -216,12 +287,11 @@ bool step(const std::vector<BundleTerm>& terms, const Layout& layout, const Syst
     C_inverse[l] = ldlt.solve(MatrixL::Identity(C.rows(), C.cols()));
     // Points (3 unknowns) in fixed sizes.
     if (layout.tangent[l] == 3)
-      eliminate<3>(terms, layout, sys, l, C_inverse[l], S, b);
+      eliminate<3>(terms, layout, sys, l, C_inverse[l], S);
     else
-      eliminate<Eigen::Dynamic>(terms, layout, sys, l, C_inverse[l], S, b);
+      eliminate<Eigen::Dynamic>(terms, layout, sys, l, C_inverse[l], S);
   }
-  dp = S.ldlt().solve(b);
-  if (!dp.allFinite()) return false;
+  if (!S.solve(dp)) return false;
   dl.resize(sys.Hll.size());
   for (std::size_t l = 0; l < sys.Hll.size(); ++l) {
     const std::vector<int>& own = layout.terms_of[l];

@@ -186,6 +186,109 @@ TEST(BundleSolver, FindsTheMinimumCeresFindsWithEveryKindOfLandmark) {
   }
 }
 
+TEST(BundleSolver, AWholeSequencesAdjustmentIsSolvedSparselyToTheSameMinimum) {
+  // 150 keyframes along a corridor, each seeing the points near it only: more free poses than
+  // the dense reduced system takes, so the sparse factorisation solves it.
+  std::mt19937 rng(9);
+  const PinholeCamera cam = test::make_camera();
+  std::normal_distribution<double> noise(0.0, 0.5), small(0.0, 0.01);
+  std::uniform_real_distribution<double> across(-1.0, 1.0), ahead(2.0, 3.0);
+  const int n = 150;
+  std::vector<double> poses(n * kPoseSize);
+  std::vector<bool> fixed(n, false);
+  fixed[0] = true;
+  std::vector<SE3> truth;
+  for (int k = 0; k < n; ++k) {
+    truth.push_back(SE3(Eigen::Quaterniond::Identity(), Eigen::Vector3d(-0.1 * k, 0.0, 0.0)));
+    const Vector6d error = k == 0 ? Vector6d::Zero()
+                                  : Vector6d((Vector6d() << small(rng), small(rng), small(rng),
+                                              small(rng), small(rng), small(rng))
+                                                 .finished());
+    pose_to_block(SE3::exp(error) * truth.back(), &poses[static_cast<std::size_t>(k) * kPoseSize]);
+  }
+  std::vector<Eigen::Vector3d> points;
+  std::deque<ReprojectionError<3>> costs;
+  std::vector<BundleTerm> terms;
+  for (int i = 0; i < 4 * n; ++i) {
+    const Eigen::Vector3d p(0.025 * i + 0.3 * across(rng), across(rng), ahead(rng));
+    points.push_back(p + Eigen::Vector3d(small(rng), small(rng), small(rng)));
+    const int first = std::max(0, i / 4 - 3);
+    for (int k = first; k < std::min(n, first + 6); ++k) {
+      const Eigen::Vector3d p_c = truth[static_cast<std::size_t>(k)] * p;
+      if (std::abs(p_c.x()) > 0.9 * p_c.z()) continue;
+      PointMeasurement m;
+      m.uv = cam.project(p_c) + Eigen::Vector2d(noise(rng), noise(rng));
+      m.u_right = cam.right_u(m.uv.x(), p_c.z()) + noise(rng);
+      m.with_depth = true;
+      terms.push_back({&costs.emplace_back(cam, m), k, i, 0.0});
+    }
+  }
+  std::vector<BundleLandmark> landmarks;
+  for (auto& p : points) landmarks.push_back({p.data(), 3, nullptr});
+  std::vector<double> reference_poses = poses;
+  std::vector<Eigen::Vector3d> reference_points = points;
+
+  BundleSolverOptions options;
+  options.max_iterations = 50;
+  options.function_tolerance = 1e-15;
+  options.parameter_tolerance = 1e-15;
+  const BundleSolverSummary summary = solve_bundle(terms, poses.data(), fixed, landmarks, options);
+  ASSERT_TRUE(summary.usable);
+  EXPECT_LT(summary.final_cost, 0.1 * summary.initial_cost);
+
+  ceres::Problem::Options o;
+  o.cost_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  o.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  ceres::Problem problem(o);
+  SE3Manifold pose_manifold;
+  for (const BundleTerm& t : terms)
+    problem.AddResidualBlock(const_cast<ceres::CostFunction*>(t.cost), nullptr,
+                             &reference_poses[static_cast<std::size_t>(t.pose) * kPoseSize],
+                             reference_points[static_cast<std::size_t>(t.landmark)].data());
+  for (int k = 0; k < n; ++k) {
+    double* block = &reference_poses[static_cast<std::size_t>(k) * kPoseSize];
+    if (!problem.HasParameterBlock(block)) continue;
+    problem.SetManifold(block, &pose_manifold);
+    if (fixed[static_cast<std::size_t>(k)]) problem.SetParameterBlockConstant(block);
+  }
+  ceres::Solver::Options ceres_options;
+  ceres_options.linear_solver_type = ceres::SPARSE_SCHUR;
+  ceres_options.max_num_iterations = 50;
+  ceres_options.function_tolerance = 1e-15;
+  ceres_options.parameter_tolerance = 1e-15;
+  ceres::Solver::Summary ceres_summary;
+  ceres::Solve(ceres_options, &problem, &ceres_summary);
+  ASSERT_TRUE(ceres_summary.IsSolutionUsable());
+  double largest = 0.0;
+  for (int k = 0; k < n; ++k)
+    largest = std::max(
+        largest,
+        (block_to_pose(&poses[static_cast<std::size_t>(k) * kPoseSize]) *
+         block_to_pose(&reference_poses[static_cast<std::size_t>(k) * kPoseSize]).inverse())
+            .log()
+            .norm());
+  for (std::size_t i = 0; i < points.size(); ++i)
+    largest = std::max(largest, (points[i] - reference_points[i]).norm());
+  EXPECT_LT(largest, 1e-6);
+}
+
+TEST(BundleSolver, WithEveryPoseFixedTheLandmarksAloneMove) {
+  Bundle ours(10, true), reference(10, true);
+  const Bundle start(10, true);
+  ours.fixed.assign(4, true);
+  reference.fixed.assign(4, true);
+  BundleSolverOptions options;
+  options.max_iterations = 100;
+  options.function_tolerance = 1e-15;
+  options.parameter_tolerance = 1e-15;
+  ASSERT_TRUE(
+      solve_bundle(ours.terms, ours.poses.data(), ours.fixed, ours.landmarks, options).usable);
+  reference.solve_with_ceres(100);
+  EXPECT_EQ(ours.poses, start.poses);
+  EXPECT_LT(largest_difference(ours, reference), 1e-6);
+  EXPECT_GT(largest_difference(ours, start), 0.01);
+}
+
 TEST(BundleSolver, ASetAbortFlagStopsBeforeTheFirstStep) {
   Bundle bundle(6, false);
   const Bundle start(6, false);
