@@ -14,13 +14,6 @@ namespace {
 
 constexpr int kMaxResidual = 4;
 constexpr int kMaxLandmark = 6;
-// Ceres's bounds on the Levenberg-Marquardt diagonal and its trust-region radius, and the share
-// of the predicted decrease a step must achieve to be taken (as in pose_solver.cpp).
-constexpr double kMinDiagonal = 1e-6;
-constexpr double kMaxDiagonal = 1e32;
-constexpr double kMaxRadius = 1e16;
-constexpr double kMinRadius = 1e-32;
-constexpr double kMinRelativeDecrease = 1e-3;
 
 using Matrix6d = Eigen::Matrix<double, 6, 6>;
 using Matrix76 = Eigen::Matrix<double, 7, 6, Eigen::RowMajor>;
@@ -158,11 +151,10 @@ bool evaluate(const std::vector<BundleTerm>& terms, const std::vector<BundleLand
   return std::isfinite(out.cost);
 }
 
-/// The damped diagonal Ceres adds: diag(H) clamped, divided by the radius.
+/// The damped system's diagonal (TrustRegion::damping).
 template <typename Matrix>
-void damp(Matrix& H, double radius) {
-  for (Eigen::Index i = 0; i < H.rows(); ++i)
-    H(i, i) += std::clamp(H(i, i), kMinDiagonal, kMaxDiagonal) / radius;
+void damp(Matrix& H, const TrustRegion& region) {
+  for (Eigen::Index i = 0; i < H.rows(); ++i) H(i, i) += region.damping(H(i, i));
 }
 
 /// The poses' system after the landmarks' elimination, S dp = b, by 6x6 blocks of pose pairs
@@ -269,11 +261,11 @@ void eliminate(const std::vector<BundleTerm>& terms, const Layout& layout, const
 /// The Levenberg-Marquardt step at `sys` (poses' tangent steps in dp, 6 per free pose, and each
 /// landmark's in dl), the landmarks eliminated; false when a system is not positive definite.
 bool step(const std::vector<BundleTerm>& terms, const Layout& layout, const System& sys,
-          double radius, Eigen::VectorXd& dp, std::vector<VectorL>& dl) {
+          const TrustRegion& region, Eigen::VectorXd& dp, std::vector<VectorL>& dl) {
   ReducedSystem S(layout.free_poses);
   for (int p = 0; p < layout.free_poses; ++p) {
     Matrix6d A = sys.Hpp[static_cast<std::size_t>(p)];
-    damp(A, radius);
+    damp(A, region);
     S.add(p, p, A);
     S.rhs().segment<6>(6 * p) = -sys.gp[static_cast<std::size_t>(p)];
   }
@@ -281,7 +273,7 @@ bool step(const std::vector<BundleTerm>& terms, const Layout& layout, const Syst
   for (std::size_t l = 0; l < sys.Hll.size(); ++l) {
     if (layout.terms_of[l].empty()) continue;
     MatrixL C = sys.Hll[l];
-    damp(C, radius);
+    damp(C, region);
     const Eigen::LDLT<MatrixL> ldlt(C);
     if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) return false;
     C_inverse[l] = ldlt.solve(MatrixL::Identity(C.rows(), C.cols()));
@@ -396,8 +388,7 @@ BundleSolverSummary solve_bundle(const std::vector<BundleTerm>& terms, double* p
     candidate_landmarks[l].assign(landmarks[l].x, landmarks[l].x + landmarks[l].ambient);
     candidate.landmarks.push_back(candidate_landmarks[l].data());
   }
-  double radius = options.initial_radius;
-  double decrease_factor = 2.0;
+  TrustRegion region(options.initial_radius);
   const SE3Manifold pose_manifold;
   Eigen::VectorXd dp;
   std::vector<VectorL> dl;
@@ -410,7 +401,7 @@ BundleSolverSummary solve_bundle(const std::vector<BundleTerm>& terms, double* p
     if (gradient <= options.gradient_tolerance) break;
     ++summary.iterations;
     bool taken = false;
-    const bool solved = step(terms, layout, sys, radius, dp, dl);
+    const bool solved = step(terms, layout, sys, region, dp, dl);
     const double predicted = solved ? model_decrease(terms, layout, sys, dp, dl) : 0.0;
     if (solved && predicted > 0.0) {
       // The candidate, and how far it is from the current parameters.
@@ -448,16 +439,14 @@ BundleSolverSummary solve_bundle(const std::vector<BundleTerm>& terms, double* p
         const bool converged = std::abs(change) <= options.function_tolerance * sys.cost;
         const double relative_decrease = change / predicted;
         if ((converged && change > 0.0) ||
-            (!converged && relative_decrease > kMinRelativeDecrease)) {
+            (!converged && relative_decrease > TrustRegion::kMinRelativeDecrease)) {
           std::copy(candidate_poses.begin(), candidate_poses.end(), poses);
           for (std::size_t l = 0; l < landmarks.size(); ++l)
             std::copy(candidate_landmarks[l].begin(), candidate_landmarks[l].end(), landmarks[l].x);
           ++summary.successful;
           summary.final_cost = trial.cost;
           if (converged || !evaluate(terms, landmarks, layout, current, true, sys)) break;
-          const double c = 2.0 * relative_decrease - 1.0;
-          radius = std::min(kMaxRadius, radius / std::max(1.0 / 3.0, 1.0 - c * c * c));
-          decrease_factor = 2.0;
+          region.accept(relative_decrease);
           taken = true;
         } else if (converged) {
           break;
@@ -468,11 +457,7 @@ BundleSolverSummary solve_bundle(const std::vector<BundleTerm>& terms, double* p
       summary.aborted = true;
       break;
     }
-    if (!taken) {
-      radius /= decrease_factor;
-      decrease_factor *= 2.0;
-      if (radius < kMinRadius) break;
-    }
+    if (!taken && !region.reject()) break;
   }
   return summary;
 }

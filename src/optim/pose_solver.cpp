@@ -13,14 +13,6 @@ namespace {
 using Matrix6d = Eigen::Matrix<double, 6, 6>;
 using Matrix76 = Eigen::Matrix<double, 7, 6, Eigen::RowMajor>;
 
-/// Ceres's bounds on the Levenberg-Marquardt diagonal and its trust-region radius.
-constexpr double kMinDiagonal = 1e-6;
-constexpr double kMaxDiagonal = 1e32;
-constexpr double kMaxRadius = 1e16;
-constexpr double kMinRadius = 1e-32;
-/// A step is taken when the cost falls by at least this fraction of the linear model's decrease.
-constexpr double kMinRelativeDecrease = 1e-3;
-
 /// The cost at a pose and, with `normal` set, the Gauss-Newton system of its tangent: H = J^T W J
 /// and g = J^T W r with the Huber weights W. False when a term cannot be evaluated.
 struct Linearisation {
@@ -100,8 +92,7 @@ PoseSolverSummary solve_pose(const std::vector<PoseTerm>& terms, double* pose,
   summary.usable = true;
   summary.initial_cost = summary.final_cost = at.cost;
 
-  double radius = options.initial_radius;
-  double decrease_factor = 2.0;
+  TrustRegion region(options.initial_radius);
   const SE3Manifold manifold;
   double candidate[kPoseSize];
   Linearisation trial;
@@ -109,9 +100,8 @@ PoseSolverSummary solve_pose(const std::vector<PoseTerm>& terms, double* pose,
     if (at.g.cwiseAbs().maxCoeff() <= options.gradient_tolerance) break;
     ++summary.iterations;
     // The step of the damped system, and the decrease the linear model predicts for it.
-    const Vector6d diagonal = at.H.diagonal().cwiseMax(kMinDiagonal).cwiseMin(kMaxDiagonal);
     Matrix6d damped = at.H;
-    damped.diagonal() += diagonal / radius;
+    for (int i = 0; i < 6; ++i) damped(i, i) += region.damping(at.H(i, i));
     const Vector6d step = -damped.ldlt().solve(at.g);
     const double model_decrease = -(at.g.dot(step) + 0.5 * step.dot(at.H * step));
     const bool valid = step.allFinite() && model_decrease > 0.0;
@@ -132,24 +122,18 @@ PoseSolverSummary solve_pose(const std::vector<PoseTerm>& terms, double* pose,
           break;
         }
         const double relative_decrease = change / model_decrease;
-        if (relative_decrease > kMinRelativeDecrease) {
+        if (relative_decrease > TrustRegion::kMinRelativeDecrease) {
           std::copy(candidate, candidate + kPoseSize, pose);
           // A usable start pose gives a usable pose; a later one that fails stops here.
           if (!evaluate(terms, pose, true, at)) break;
           summary.final_cost = at.cost;
           ++summary.successful;
-          const double c = 2.0 * relative_decrease - 1.0;
-          radius = std::min(kMaxRadius, radius / std::max(1.0 / 3.0, 1.0 - c * c * c));
-          decrease_factor = 2.0;
+          region.accept(relative_decrease);
           taken = true;
         }
       }
     }
-    if (!taken) {
-      radius /= decrease_factor;
-      decrease_factor *= 2.0;
-      if (radius < kMinRadius) break;
-    }
+    if (!taken && !region.reject()) break;
   }
   return summary;
 }

@@ -16,6 +16,8 @@
 #include <atomic>
 #include <vector>
 
+#include "mcslam/optim/levenberg_marquardt.hpp"
+
 namespace mcslam::optim {
 
 /// A landmark's parameter block: `x` points to `ambient` doubles; `manifold` (ambient size equal,
@@ -35,12 +37,7 @@ struct BundleTerm {
   double huber_delta = 0.0;
 };
 
-struct BundleSolverOptions {
-  int max_iterations = 10;
-  double function_tolerance = 1e-6;
-  double parameter_tolerance = 1e-8;
-  double gradient_tolerance = 1e-10;
-  double initial_radius = 1e4;
+struct BundleSolverOptions : LevenbergMarquardtOptions {
   /// When set by another thread, the solver stops after its current iteration (the parameters
   /// are then those of the last step taken).
   const std::atomic<bool>* abort = nullptr;

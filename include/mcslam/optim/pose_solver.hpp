@@ -16,6 +16,8 @@
 
 #include <vector>
 
+#include "mcslam/optim/levenberg_marquardt.hpp"
+
 namespace mcslam::optim {
 
 /// One residual block of the pose alone: `cost` takes one parameter block of 7 doubles (a pose
@@ -29,18 +31,7 @@ struct PoseTerm {
 
 inline constexpr int kMaxPoseResidual = 4;
 
-struct PoseSolverOptions {
-  /// Steps tried, successful or not (Ceres's max_num_iterations).
-  int max_iterations = 10;
-  /// Stop when a step changes the cost by less than this fraction of it.
-  double function_tolerance = 1e-6;
-  /// Stop when a step moves the pose block by less than this fraction of its norm.
-  double parameter_tolerance = 1e-8;
-  /// Stop when the gradient's largest component (tangent) falls below this.
-  double gradient_tolerance = 1e-10;
-  /// Initial trust-region radius (the inverse of the first damping factor).
-  double initial_radius = 1e4;
-};
+using PoseSolverOptions = LevenbergMarquardtOptions;
 
 struct PoseSolverSummary {
   /// False only when the cost cannot be evaluated at the start pose (a cost function returned
