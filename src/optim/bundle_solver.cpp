@@ -3,6 +3,7 @@
 #include <Eigen/Sparse>
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <unordered_map>
 
 #include "mcslam/core/se3.hpp"
@@ -338,13 +339,11 @@ bool valid_shape(const BundleTerm& term, const std::vector<BundleLandmark>& land
          term.cost->num_residuals() >= 1 && term.cost->num_residuals() <= kMaxResidual;
 }
 
-}  // namespace
-
-BundleSolverSummary solve_bundle(const std::vector<BundleTerm>& terms, double* poses,
-                                 const std::vector<bool>& pose_fixed,
-                                 const std::vector<BundleLandmark>& landmarks,
-                                 const BundleSolverOptions& options) {
-  BundleSolverSummary summary;
+/// The layout of a problem, or nothing when a block or a term does not have the shape the solver
+/// takes (see bundle_solver.hpp).
+std::optional<Layout> make_layout(const std::vector<BundleTerm>& terms,
+                                  const std::vector<bool>& pose_fixed,
+                                  const std::vector<BundleLandmark>& landmarks) {
   Layout layout;
   layout.free_index.assign(pose_fixed.size(), -1);
   for (std::size_t p = 0; p < pose_fixed.size(); ++p)
@@ -353,22 +352,104 @@ BundleSolverSummary solve_bundle(const std::vector<BundleTerm>& terms, double* p
   layout.terms_of.resize(landmarks.size());
   for (std::size_t l = 0; l < landmarks.size(); ++l) {
     const BundleLandmark& lm = landmarks[l];
-    if (lm.x == nullptr || lm.ambient < 1 || lm.ambient > kMaxLandmark) return summary;
+    if (lm.x == nullptr || lm.ambient < 1 || lm.ambient > kMaxLandmark) return std::nullopt;
     if (lm.manifold && (lm.manifold->AmbientSize() != lm.ambient ||
                         lm.manifold->TangentSize() < 1 || lm.manifold->TangentSize() > lm.ambient))
-      return summary;
+      return std::nullopt;
     layout.tangent[l] = lm.manifold ? lm.manifold->TangentSize() : lm.ambient;
   }
   for (std::size_t k = 0; k < terms.size(); ++k) {
-    if (!valid_shape(terms[k], landmarks, pose_fixed.size())) return summary;
+    if (!valid_shape(terms[k], landmarks, pose_fixed.size())) return std::nullopt;
     layout.terms_of[static_cast<std::size_t>(terms[k].landmark)].push_back(static_cast<int>(k));
   }
+  return layout;
+}
 
+/// The largest component of the gradient.
+double largest_gradient(const System& sys) {
+  double largest = 0.0;
+  for (const Vector6d& g : sys.gp) largest = std::max(largest, g.cwiseAbs().maxCoeff());
+  for (const VectorL& g : sys.gl)
+    if (g.size() > 0) largest = std::max(largest, g.cwiseAbs().maxCoeff());
+  return largest;
+}
+
+/// The parameters a step leads to: every pose (fixed ones copied) and every landmark, in buffers
+/// of their own until the step is taken.
+class Candidate {
+ public:
+  Candidate(const double* poses, std::size_t num_poses,
+            const std::vector<BundleLandmark>& landmarks)
+      : poses_(poses, poses + num_poses * kPoseSize), landmarks_(landmarks.size()) {
+    state_.poses = poses_.data();
+    for (std::size_t l = 0; l < landmarks.size(); ++l) {
+      landmarks_[l].assign(landmarks[l].x, landmarks[l].x + landmarks[l].ambient);
+      state_.landmarks.push_back(landmarks_[l].data());
+    }
+  }
+
+  const State& state() const { return state_; }
+
+  /// Moves to the step (dp, dl) from the current parameters; true when it moves them by no more
+  /// than `tolerance` of their norm (Ceres's parameter tolerance: the iterations stop).
+  bool step_from(const double* poses, const std::vector<BundleLandmark>& landmarks,
+                 const Layout& layout, const Eigen::VectorXd& dp, const std::vector<VectorL>& dl,
+                 double tolerance) {
+    const SE3Manifold pose_manifold;
+    double moved = 0.0, norm = 0.0;
+    for (std::size_t p = 0; p < layout.free_index.size(); ++p) {
+      const double* x = poses + p * kPoseSize;
+      double* y = poses_.data() + p * kPoseSize;
+      const int f = layout.free_index[p];
+      if (f < 0) continue;  // copied at construction, never moved
+      pose_manifold.Plus(x, dp.data() + 6 * f, y);
+      for (int i = 0; i < kPoseSize; ++i) {
+        moved += (y[i] - x[i]) * (y[i] - x[i]);
+        norm += x[i] * x[i];
+      }
+    }
+    for (std::size_t l = 0; l < landmarks.size(); ++l) {
+      const BundleLandmark& lm = landmarks[l];
+      double* y = landmarks_[l].data();
+      if (lm.manifold)
+        lm.manifold->Plus(lm.x, dl[l].data(), y);
+      else
+        for (int i = 0; i < lm.ambient; ++i) y[i] = lm.x[i] + dl[l][i];
+      for (int i = 0; i < lm.ambient; ++i) {
+        moved += (y[i] - lm.x[i]) * (y[i] - lm.x[i]);
+        norm += lm.x[i] * lm.x[i];
+      }
+    }
+    return std::sqrt(moved) <= tolerance * (std::sqrt(norm) + tolerance);
+  }
+
+  /// Takes the step: the current parameters become the candidate's.
+  void copy_to(double* poses, const std::vector<BundleLandmark>& landmarks) const {
+    std::copy(poses_.begin(), poses_.end(), poses);
+    for (std::size_t l = 0; l < landmarks.size(); ++l)
+      std::copy(landmarks_[l].begin(), landmarks_[l].end(), landmarks[l].x);
+  }
+
+ private:
+  std::vector<double> poses_;
+  std::vector<std::vector<double>> landmarks_;
+  State state_;
+};
+
+}  // namespace
+
+BundleSolverSummary solve_bundle(const std::vector<BundleTerm>& terms, double* poses,
+                                 const std::vector<bool>& pose_fixed,
+                                 const std::vector<BundleLandmark>& landmarks,
+                                 const BundleSolverOptions& options) {
+  BundleSolverSummary summary;
+  const std::optional<Layout> layout = make_layout(terms, pose_fixed, landmarks);
+  if (!layout) return summary;
   State current;
   current.poses = poses;
   for (const BundleLandmark& lm : landmarks) current.landmarks.push_back(lm.x);
   System sys;
-  if (!evaluate(terms, landmarks, layout, current, true, sys)) return summary;
+  if (!evaluate(terms, landmarks, *layout, current, true, sys)) return summary;
   summary.usable = true;
   summary.initial_cost = summary.final_cost = sys.cost;
   const auto aborted = [&] {
@@ -379,73 +460,32 @@ BundleSolverSummary solve_bundle(const std::vector<BundleTerm>& terms, double* p
     return summary;
   }
 
-  // The candidate's parameters: every pose (fixed ones copied) and every landmark.
-  std::vector<double> candidate_poses(poses, poses + pose_fixed.size() * kPoseSize);
-  std::vector<std::vector<double>> candidate_landmarks(landmarks.size());
-  State candidate;
-  candidate.poses = candidate_poses.data();
-  for (std::size_t l = 0; l < landmarks.size(); ++l) {
-    candidate_landmarks[l].assign(landmarks[l].x, landmarks[l].x + landmarks[l].ambient);
-    candidate.landmarks.push_back(candidate_landmarks[l].data());
-  }
+  Candidate candidate(poses, pose_fixed.size(), landmarks);
   TrustRegion region(options.initial_radius);
-  const SE3Manifold pose_manifold;
   Eigen::VectorXd dp;
   std::vector<VectorL> dl;
   System trial;
   while (summary.iterations < options.max_iterations) {
-    double gradient = 0.0;
-    for (const Vector6d& g : sys.gp) gradient = std::max(gradient, g.cwiseAbs().maxCoeff());
-    for (std::size_t l = 0; l < sys.gl.size(); ++l)
-      if (sys.gl[l].size() > 0) gradient = std::max(gradient, sys.gl[l].cwiseAbs().maxCoeff());
-    if (gradient <= options.gradient_tolerance) break;
+    if (largest_gradient(sys) <= options.gradient_tolerance) break;
     ++summary.iterations;
     bool taken = false;
-    const bool solved = step(terms, layout, sys, region, dp, dl);
-    const double predicted = solved ? model_decrease(terms, layout, sys, dp, dl) : 0.0;
+    const bool solved = step(terms, *layout, sys, region, dp, dl);
+    const double predicted = solved ? model_decrease(terms, *layout, sys, dp, dl) : 0.0;
     if (solved && predicted > 0.0) {
-      // The candidate, and how far it is from the current parameters.
-      double moved = 0.0, norm = 0.0;
-      for (std::size_t p = 0; p < pose_fixed.size(); ++p) {
-        const double* x = poses + p * kPoseSize;
-        double* y = candidate_poses.data() + p * kPoseSize;
-        const int f = layout.free_index[p];
-        if (f >= 0)
-          pose_manifold.Plus(x, dp.data() + 6 * f, y);
-        else
-          std::copy(x, x + kPoseSize, y);
-        for (int i = 0; i < kPoseSize; ++i) {
-          moved += (y[i] - x[i]) * (y[i] - x[i]);
-          if (f >= 0) norm += x[i] * x[i];
-        }
-      }
-      for (std::size_t l = 0; l < landmarks.size(); ++l) {
-        const BundleLandmark& lm = landmarks[l];
-        double* y = candidate_landmarks[l].data();
-        if (lm.manifold)
-          lm.manifold->Plus(lm.x, dl[l].data(), y);
-        else
-          for (int i = 0; i < lm.ambient; ++i) y[i] = lm.x[i] + dl[l][i];
-        for (int i = 0; i < lm.ambient; ++i) {
-          moved += (y[i] - lm.x[i]) * (y[i] - lm.x[i]);
-          norm += lm.x[i] * lm.x[i];
-        }
-      }
-      if (std::sqrt(moved) <=
-          options.parameter_tolerance * (std::sqrt(norm) + options.parameter_tolerance))
+      if (candidate.step_from(poses, landmarks, *layout, dp, dl, options.parameter_tolerance))
         break;
-      if (evaluate(terms, landmarks, layout, candidate, false, trial)) {
+      if (evaluate(terms, landmarks, *layout, candidate.state(), false, trial)) {
         const double change = sys.cost - trial.cost;
         const bool converged = std::abs(change) <= options.function_tolerance * sys.cost;
         const double relative_decrease = change / predicted;
         if ((converged && change > 0.0) ||
             (!converged && relative_decrease > TrustRegion::kMinRelativeDecrease)) {
-          std::copy(candidate_poses.begin(), candidate_poses.end(), poses);
-          for (std::size_t l = 0; l < landmarks.size(); ++l)
-            std::copy(candidate_landmarks[l].begin(), candidate_landmarks[l].end(), landmarks[l].x);
+          candidate.copy_to(poses, landmarks);
           ++summary.successful;
           summary.final_cost = trial.cost;
-          if (converged || !evaluate(terms, landmarks, layout, current, true, sys)) break;
+          // A system that cannot be formed at the step taken (a Jacobian that is not finite)
+          // stops the iterations there.
+          if (converged || !evaluate(terms, landmarks, *layout, current, true, sys)) break;
           region.accept(relative_decrease);
           taken = true;
         } else if (converged) {

@@ -13,8 +13,8 @@ namespace {
 using Matrix6d = Eigen::Matrix<double, 6, 6>;
 using Matrix76 = Eigen::Matrix<double, 7, 6, Eigen::RowMajor>;
 
-/// The cost at a pose and, with `normal` set, the Gauss-Newton system of its tangent: H = J^T W J
-/// and g = J^T W r with the Huber weights W. False when a term cannot be evaluated.
+/// The cost at a pose and the Gauss-Newton system of its tangent: H = J^T W J and g = J^T W r
+/// with the Huber weights W.
 struct Linearisation {
   double cost = 0.0;
   Matrix6d H = Matrix6d::Zero();
@@ -35,6 +35,8 @@ bool accumulate(const double* residual, const double* jacobian, const Matrix76& 
   return true;
 }
 
+/// The cost at `pose` and, with `normal` set, its system; false when a term cannot be evaluated
+/// there (or gives a non-finite value).
 bool evaluate(const std::vector<PoseTerm>& terms, const double* pose, bool normal,
               Linearisation& out) {
   out = Linearisation{};
@@ -82,6 +84,7 @@ PoseSolverSummary solve_pose(const std::vector<PoseTerm>& terms, double* pose,
                              const PoseSolverOptions& options) {
   PoseSolverSummary summary;
   for (const PoseTerm& term : terms) {
+    if (term.cost == nullptr) return summary;
     const auto& blocks = term.cost->parameter_block_sizes();
     if (blocks.size() != 1 || blocks[0] != kPoseSize || term.cost->num_residuals() < 1 ||
         term.cost->num_residuals() > kMaxPoseResidual)
@@ -124,10 +127,11 @@ PoseSolverSummary solve_pose(const std::vector<PoseTerm>& terms, double* pose,
         const double relative_decrease = change / model_decrease;
         if (relative_decrease > TrustRegion::kMinRelativeDecrease) {
           std::copy(candidate, candidate + kPoseSize, pose);
-          // A usable start pose gives a usable pose; a later one that fails stops here.
-          if (!evaluate(terms, pose, true, at)) break;
-          summary.final_cost = at.cost;
+          summary.final_cost = trial.cost;
           ++summary.successful;
+          // The step is taken; a system that cannot be formed there (a Jacobian that is not
+          // finite) stops the iterations at it.
+          if (!evaluate(terms, pose, true, at)) break;
           region.accept(relative_decrease);
           taken = true;
         }
