@@ -186,6 +186,7 @@ TEST(PoseSolver, ACostFunctionOfAnotherShapeIsRefused) {
   double pose[kPoseSize];
   pose_to_block(start(), pose);
   EXPECT_FALSE(solve_pose({{&two_blocks, 0.0}}, pose).usable);
+  EXPECT_FALSE(solve_pose({{nullptr, 0.0}}, pose).usable);
 }
 
 TEST(PoseSolver, NoTermsLeaveThePoseAsItIs) {
