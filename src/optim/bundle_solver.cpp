@@ -9,6 +9,7 @@
 #include "mcslam/core/se3.hpp"
 #include "mcslam/optim/se3_manifold.hpp"
 #include "optim/huber.hpp"
+#include "optim/trust_region.hpp"
 
 namespace mcslam::optim {
 namespace {

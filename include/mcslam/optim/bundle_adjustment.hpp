@@ -64,8 +64,8 @@ struct BundleAdjustmentResult {
   std::vector<bool> plane_inlier;
   bool aborted = false;
   /// The solver found no usable solution (the cost could not be evaluated at the start): the
-  /// problem's poses and landmarks are left as they were
-  /// given, and the caller must not apply them.
+  /// problem's poses and landmarks are left as they were given, and the caller must not apply
+  /// them.
   bool failed = false;
   /// Point observations left out from the start: the point was behind the camera (or within
   /// kMinPointDepth of its centre) at the initial estimate. They are outliers.

@@ -1,8 +1,8 @@
 #pragma once
-// Pose-only optimisation of one frame against fixed world points (Levenberg-Marquardt on the
-// pose's tangent, pose_solver.hpp; Huber loss, rounds of
-// outlier rejection by a chi-square test, as ORB-SLAM2's PoseOptimization), lines and planes, and
-// the features of constrained moving objects (constraint_residual.hpp).
+// Pose-only optimisation of one frame against fixed world points, lines and planes, and the
+// features of constrained moving objects (constraint_residual.hpp): Levenberg-Marquardt on the
+// pose's tangent (pose_solver.hpp) under a Huber loss, in rounds of outlier rejection by a
+// chi-square test, as ORB-SLAM2's PoseOptimization.
 
 #include <optional>
 #include <string>
