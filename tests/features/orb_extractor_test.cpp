@@ -1,6 +1,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <bit>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
@@ -67,6 +68,20 @@ double circular_diff_deg(double a, double b) {
 
 const std::string kRpyRgb =
     std::string(MCSLAM_SHARED_DATA) + "/tum/rgbd_dataset_freiburg1_rpy/rgb/";
+
+TEST(HammingDistance, Popcount64MatchesTheStandardCount) {
+  std::mt19937_64 rng(11);
+  for (const std::uint64_t x : {std::uint64_t{0}, ~std::uint64_t{0}, std::uint64_t{1},
+                                std::uint64_t{1} << 63, std::uint64_t{0x8000000000000001ULL}})
+    EXPECT_EQ(popcount64(x), std::popcount(x));
+  for (int trial = 0; trial < 1000; ++trial) {
+    // Sparse, dense and uniform words.
+    const std::uint64_t x = trial % 3 == 0   ? rng() & rng() & rng()
+                            : trial % 3 == 1 ? rng() | rng() | rng()
+                                             : rng();
+    EXPECT_EQ(popcount64(x), std::popcount(x));
+  }
+}
 
 TEST(HammingDistance, MatchesBitByBitReference) {
   std::mt19937_64 rng(7);
