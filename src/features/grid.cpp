@@ -1,7 +1,10 @@
 #include "mcslam/features/grid.hpp"
 
 #include <algorithm>
+#include <array>
+#include <bit>
 #include <cmath>
+#include <cstdint>
 
 namespace mcslam::features {
 namespace {
@@ -40,6 +43,12 @@ KeypointGrid::KeypointGrid(const std::vector<Keypoint>& keypoints, int width, in
     points_[static_cast<std::size_t>(slot)] = {keypoints[i].uv.x(), keypoints[i].uv.y(),
                                                keypoints[i].level, static_cast<int>(i)};
   }
+  // Within a cell, by level (then index, the order the counting sort left): a query reads only
+  // the levels it asks for.
+  for (std::size_t c = 0; c < num_cells; ++c)
+    std::stable_sort(points_.begin() + cell_start_[c], points_.begin() + cell_start_[c + 1],
+                     [](const Entry& a, const Entry& b) { return a.level < b.level; });
+  num_indices_ = keypoints.size();
 }
 
 std::vector<int> KeypointGrid::query(float u, float v, float radius, int min_level,
@@ -58,18 +67,38 @@ void KeypointGrid::query(float u, float v, float radius, int min_level, int max_
   const int r0 = cell_index(v - radius, inv_cell_h_, rows_);
   const int r1 = cell_index(v + radius, inv_cell_h_, rows_);
   const bool check_max = max_level >= 0;
+  const auto below_min = [min_level](const Entry& e, int) { return e.level < min_level; };
   for (int r = r0; r <= r1; ++r) {
     for (int c = c0; c <= c1; ++c) {
       const std::size_t cell = static_cast<std::size_t>(r * cols_ + c);
-      for (int k = cell_start_[cell]; k < cell_start_[cell + 1]; ++k) {
-        const Entry& e = points_[static_cast<std::size_t>(k)];
-        if (e.level < min_level || (check_max && e.level > max_level)) continue;
-        if (std::abs(e.u - u) > radius || std::abs(e.v - v) > radius) continue;
-        out.push_back(e.index);
+      const auto end = points_.begin() + cell_start_[cell + 1];
+      for (auto e = std::lower_bound(points_.begin() + cell_start_[cell], end, 0, below_min);
+           e != end && (!check_max || e->level <= max_level); ++e) {
+        if (std::abs(e->u - u) > radius || std::abs(e->v - v) > radius) continue;
+        out.push_back(e->index);
       }
     }
   }
-  std::sort(out.begin(), out.end());
+  sort_indices(out);
+}
+
+void KeypointGrid::sort_indices(std::vector<int>& indices) const {
+  // A window over many cells returns hundreds of indices: set bits of a bitmap over the frame's
+  // keypoints and read them back in order, instead of a comparison sort.
+  constexpr std::size_t kMaxWords = 64;
+  constexpr std::size_t kMinForBitmap = 32;
+  const std::size_t words = (num_indices_ + 63) / 64;
+  if (indices.size() < kMinForBitmap || words > kMaxWords) {
+    std::sort(indices.begin(), indices.end());
+    return;
+  }
+  std::array<std::uint64_t, kMaxWords> bits{};
+  for (const int i : indices)
+    bits[static_cast<std::size_t>(i) / 64] |= std::uint64_t{1} << (static_cast<unsigned>(i) % 64);
+  indices.clear();
+  for (std::size_t w = 0; w < words; ++w)
+    for (std::uint64_t word = bits[w]; word != 0; word &= word - 1)
+      indices.push_back(static_cast<int>(64 * w) + std::countr_zero(word));
 }
 
 }  // namespace mcslam::features

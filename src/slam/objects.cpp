@@ -5,7 +5,6 @@
 #include <limits>
 #include <numeric>
 #include <opencv2/video/tracking.hpp>
-#include <unordered_map>
 
 #include "mcslam/features/matching.hpp"
 
@@ -593,8 +592,10 @@ std::vector<MotionMatch> ObjectHandler::match_to_reference(const Frame& frame, c
   // Points: best descriptor within the window, with a ratio test; one current feature per
   // reference feature.
   std::vector<int> candidates;
-  std::unordered_map<int, std::pair<int, std::size_t>> taken;  // ref index -> (distance, slot)
-  std::vector<std::pair<std::size_t, int>> point_pairs;        // (current, reference)
+  // Per reference feature: the distance and slot in point_pairs of its current claim (slot -1:
+  // none).
+  std::vector<std::pair<int, std::ptrdiff_t>> taken(old.points.size(), {0, -1});
+  std::vector<std::pair<std::size_t, int>> point_pairs;  // (current, reference)
   // A sample of the background (features outside every box) is matched too: it tells how far
   // static features land from the camera-motion prediction in this frame.
   std::size_t background = 0;
@@ -615,12 +616,12 @@ std::vector<MotionMatch> ObjectHandler::match_to_reference(const Frame& frame, c
     const int best_idx =
         unambiguous_match(f.descriptor, candidates, old.points, opt.descriptor_distance, &best);
     if (best_idx < 0) continue;
-    const auto it = taken.find(best_idx);
-    if (it != taken.end()) {
-      if (it->second.first <= best) continue;
-      point_pairs[it->second.second].second = -1;  // the earlier claim loses
+    auto& claim = taken[static_cast<std::size_t>(best_idx)];
+    if (claim.second >= 0) {
+      if (claim.first <= best) continue;
+      point_pairs[static_cast<std::size_t>(claim.second)].second = -1;  // the earlier claim loses
     }
-    taken[best_idx] = {best, point_pairs.size()};
+    claim = {best, static_cast<std::ptrdiff_t>(point_pairs.size())};
     point_pairs.emplace_back(i, best_idx);
   }
   for (const auto& [i, j] : point_pairs) {

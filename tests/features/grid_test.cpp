@@ -23,28 +23,32 @@ std::vector<int> brute_force(const std::vector<Keypoint>& kps, float u, float v,
 }
 
 TEST(KeypointGrid, QueryEqualsBruteForce) {
-  std::mt19937_64 rng(21);
-  std::vector<Keypoint> kps;
-  for (int i = 0; i < 2000; ++i) {
-    Keypoint kp;
-    // Mostly inside a 640x480 image, some slightly outside.
-    kp.uv = Eigen::Vector2f(-10.0f + 660.0f * uniform01(rng), -10.0f + 500.0f * uniform01(rng));
-    kp.level = static_cast<int>(rng() % 8);
-    kps.push_back(kp);
-  }
-  const KeypointGrid grid(kps, 640, 480);
-  EXPECT_EQ(grid.size(), kps.size());
-  std::vector<int> out;
-  for (int q = 0; q < 2000; ++q) {
-    const float u = -50.0f + 740.0f * uniform01(rng);
-    const float v = -50.0f + 580.0f * uniform01(rng);
-    const float r = 150.0f * uniform01(rng) * uniform01(rng);
-    const int min_level = static_cast<int>(rng() % 4);
-    const int max_level = static_cast<int>(rng() % 10) - 2;  // sometimes < 0: no upper limit
-    const std::vector<int> expected = brute_force(kps, u, v, r, min_level, max_level);
-    EXPECT_EQ(grid.query(u, v, r, min_level, max_level), expected);
-    grid.query(u, v, r, min_level, max_level, out);
-    EXPECT_EQ(out, expected);
+  // 2000 keypoints: large windows' results are ordered by the grid's bitmap; 5000: by a sort.
+  for (const int num_keypoints : {2000, 5000}) {
+    std::mt19937_64 rng(21);
+    std::vector<Keypoint> kps;
+    for (int i = 0; i < num_keypoints; ++i) {
+      Keypoint kp;
+      // Mostly inside a 640x480 image, some slightly outside.
+      kp.uv = Eigen::Vector2f(-10.0f + 660.0f * uniform01(rng), -10.0f + 500.0f * uniform01(rng));
+      kp.level = static_cast<int>(rng() % 8);
+      kps.push_back(kp);
+    }
+    const KeypointGrid grid(kps, 640, 480);
+    EXPECT_EQ(grid.size(), kps.size());
+    std::vector<int> out;
+    for (int q = 0; q < 2000; ++q) {
+      const float u = -50.0f + 740.0f * uniform01(rng);
+      const float v = -50.0f + 580.0f * uniform01(rng);
+      // Up to 300 px: the coarsest pyramid levels' windows span most of the image.
+      const float r = 300.0f * uniform01(rng) * uniform01(rng);
+      const int min_level = static_cast<int>(rng() % 4);
+      const int max_level = static_cast<int>(rng() % 10) - 2;  // sometimes < 0: no upper limit
+      const std::vector<int> expected = brute_force(kps, u, v, r, min_level, max_level);
+      EXPECT_EQ(grid.query(u, v, r, min_level, max_level), expected);
+      grid.query(u, v, r, min_level, max_level, out);
+      EXPECT_EQ(out, expected);
+    }
   }
 }
 

@@ -37,13 +37,19 @@ class KeypointGrid {
     int level = 0;
     int index = 0;
   };
+  /// Sorts the indices of a query's result (each index once) in increasing order.
+  void sort_indices(std::vector<int>& indices) const;
+
   int cols_ = 0;
   int rows_ = 0;
   float inv_cell_w_ = 0.0f;
   float inv_cell_h_ = 0.0f;
-  /// Entries sorted by cell (row-major); cell c holds entries [cell_start_[c], cell_start_[c+1]).
+  /// Entries sorted by cell (row-major), then level, then index; cell c holds entries
+  /// [cell_start_[c], cell_start_[c+1]).
   std::vector<int> cell_start_;
   std::vector<Entry> points_;
+  /// The number of keypoints indexed (indices are below it).
+  std::size_t num_indices_ = 0;
 };
 
 }  // namespace mcslam::features
