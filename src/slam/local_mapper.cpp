@@ -28,8 +28,12 @@ void LocalMapper::process(KeyFrameRequest request, StageTimes* times) {
   StageTimes local;
   Stopwatch watch;
   const map::KeyFrameId id = request.id;
+  // Undistorted here, on the mapper's thread and before the map's lock, not on the frame's.
+  const cv::Mat color = undistorter_ && !request.color.empty()
+                            ? undistorter_->apply_rgb(request.color)
+                            : request.color;
   insert_keyframe(request);
-  create_points(id, request.color);
+  create_points(id, color);
   create_lines(id);
   associate_planes(id);
   local.add("map_insert", watch.elapsed_ms());
@@ -62,6 +66,10 @@ void LocalMapper::process(KeyFrameRequest request, StageTimes* times) {
     times_.push_back(std::move(local));
   }
   if (listener_ && map_.keyframe(id) != nullptr) listener_(id);
+}
+
+void LocalMapper::set_undistorter(std::shared_ptr<const io::Undistorter> undistorter) {
+  undistorter_ = std::move(undistorter);
 }
 
 void LocalMapper::set_vocabulary(std::shared_ptr<const place::Vocabulary> vocabulary,

@@ -21,7 +21,7 @@ System::System(const PinholeCamera& camera, const SystemOptions& options,
   const bool from_map = initial_map != nullptr;
   started_in_map_ = from_map;
   if (options_.localize) options_.place.loop.enabled = false;
-  undistorter_ = std::make_unique<io::Undistorter>(camera_);
+  undistorter_ = std::make_shared<const io::Undistorter>(camera_);
   builder_ = std::make_unique<FrameBuilder>(camera_, options_);
   if (options_.extract_ahead && !builder_->needs_moving_mask())
     ahead_builder_ = std::make_unique<FrameBuilder>(camera_, options_);
@@ -34,6 +34,7 @@ System::System(const PinholeCamera& camera, const SystemOptions& options,
   const double close_depth = options_.tracker.close_depth_factor * camera_.bf / camera_.fx;
   mapper_ =
       std::make_unique<LocalMapper>(camera_, options_.mapper, options_.tracker, close_depth, *map_);
+  mapper_->set_undistorter(undistorter_);
   if (vocabulary_) mapper_->set_vocabulary(vocabulary_, options_.place.direct_levels_up);
   if (from_map) tracker_->start_in_map(map_->counters().next_keyframe, options_.localize);
   if (vocabulary_ && options_.place.loop.enabled) {
@@ -226,8 +227,9 @@ FrameResult System::process(const PreparedImages& images, double timestamp,
   if (outcome.keyframe) {
     result.keyframe = true;
     ++keyframes_made_;
-    // New points take their colour from the keyframe's image (for the saved map).
-    if (rgb.channels() == 3) outcome.keyframe->color = undistorter_->apply_rgb(rgb);
+    // New points take their colour from the keyframe's image (for the saved map). The mapper
+    // undistorts it on its thread; its own copy, as the caller may reuse its buffer.
+    if (rgb.channels() == 3) outcome.keyframe->color = rgb.clone();
     if (sequential) {
       StageTimes mapper_times;
       mapper_->process(std::move(*outcome.keyframe), &mapper_times);

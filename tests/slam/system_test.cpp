@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cmath>
 #include <cstdio>
 #include <thread>
 
@@ -98,6 +99,37 @@ TEST(System, ThreadedMappingTracksToo) {
   const RunResult r = run(seq, options);
   EXPECT_EQ(r.tracked, 150);
   EXPECT_LT(eval::evaluate(seq.groundtruth, r.trajectory).ate.translation.rmse, 0.01);
+}
+
+// New map points take their colour from their keyframe's image, undistorted (by the mapper, on
+// its thread): the colour at the keypoint in System::undistort's image, not in the raw one.
+TEST(System, NewPointsTakeTheirColourFromTheUndistortedImage) {
+  const auto& seq = test::rendered_sequence(3, false);
+  PinholeCamera camera = seq.camera;
+  camera.distortion = {0.05, 0.0, 0.0, 0.0, 0.0};
+  System system(camera, sequential_options());
+  system.process(seq.frames[0].rgb, seq.frames[0].depth, seq.groundtruth[0].timestamp);
+  const cv::Mat expected = system.undistort(seq.frames[0].rgb);
+  const map::Map& map = system.map();
+  ASSERT_EQ(map.num_keyframes(), 1u);
+  const map::KeyFrame& kf = map.keyframes().begin()->second;
+  int checked = 0, moved = 0;
+  for (const auto& [id, point] : map.points()) {
+    const auto seen = point.observations.find(kf.id);
+    ASSERT_NE(seen, point.observations.end());
+    const Eigen::Vector2f uv =
+        kf.features->points[static_cast<std::size_t>(seen->second)].keypoint.uv;
+    const int x = std::clamp(static_cast<int>(std::lround(uv.x())), 0, expected.cols - 1);
+    const int y = std::clamp(static_cast<int>(std::lround(uv.y())), 0, expected.rows - 1);
+    const cv::Vec3b bgr = expected.at<cv::Vec3b>(y, x);
+    EXPECT_EQ(point.color, (std::array<std::uint8_t, 3>{bgr[2], bgr[1], bgr[0]})) << id;
+    moved += seq.frames[0].rgb.at<cv::Vec3b>(y, x) != bgr ? 1 : 0;
+    ++checked;
+  }
+  EXPECT_GT(checked, 50);
+  // The distortion moves the texture under most keypoints: the raw image would colour them
+  // otherwise.
+  EXPECT_GT(moved, checked / 2);
 }
 
 // The trajectory and the statistics may be read from another thread (a viewer, a ROS publisher)

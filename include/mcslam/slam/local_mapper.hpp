@@ -15,6 +15,7 @@
 
 #include "mcslam/core/camera.hpp"
 #include "mcslam/core/timing.hpp"
+#include "mcslam/io/undistort.hpp"
 #include "mcslam/map/correction.hpp"
 #include "mcslam/map/map.hpp"
 #include "mcslam/optim/bundle_adjustment.hpp"
@@ -39,6 +40,10 @@ class LocalMapper {
   /// levels above the words) and enter the map's keyframe database; so do the keyframes already
   /// in the map (a loaded session). Call before the first keyframe.
   void set_vocabulary(std::shared_ptr<const place::Vocabulary> vocabulary, int levels_up);
+  /// The keyframes' colour images (KeyFrameRequest::color) are the camera's raw images: the
+  /// mapper undistorts them with this before new points take their colour. Without it they
+  /// are taken as undistorted. Call before the first keyframe.
+  void set_undistorter(std::shared_ptr<const io::Undistorter> undistorter);
   /// Called on the mapper's thread after each keyframe is processed (loop detection).
   void set_keyframe_listener(std::function<void(map::KeyFrameId)> listener);
   /// Runs `task` on the mapper's thread between two keyframes and waits for it (inline when
@@ -101,6 +106,7 @@ class LocalMapper {
   PinholeCamera camera_;
   MapperOptions options_;
   std::shared_ptr<const place::Vocabulary> vocabulary_;
+  std::shared_ptr<const io::Undistorter> undistorter_;
   int direct_levels_up_ = 3;
   std::function<void(map::KeyFrameId)> listener_;
   /// The map's version right after the last correction: keyframe requests made before it

@@ -205,7 +205,7 @@ class System {
 
   PinholeCamera camera_;
   SystemOptions options_;
-  std::unique_ptr<io::Undistorter> undistorter_;
+  std::shared_ptr<const io::Undistorter> undistorter_;
   std::unique_ptr<FrameBuilder> builder_;
   std::unique_ptr<FrameBuilder> ahead_builder_;  // extract_features(), on the caller's thread
   std::unique_ptr<map::Map> map_;

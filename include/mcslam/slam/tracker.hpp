@@ -44,7 +44,8 @@ struct KeyFrameRequest {
   std::vector<map::PlaneId> plane_landmarks;        // per plane of frame
   std::vector<LandmarkStatistics> statistics;       // points
   std::vector<LandmarkStatistics> line_statistics;  // lines
-  /// The undistorted colour image (CV_8UC3), when the caller has one: it colours new points.
+  /// The colour image (CV_8UC3) as the camera gave it, when the caller has one: it colours new
+  /// points, once the mapper has undistorted it (LocalMapper::set_undistorter).
   cv::Mat color;
   /// Per point / line segment of frame: 1 on a dynamic or constrained moving object (no
   /// landmark may be created or fused there). Empty when the frame had no such object.
