@@ -1029,17 +1029,43 @@ int Tracker::remove_movers(const Frame& frame, Associations& assoc, SE3& T_c_w, 
 }
 
 bool Tracker::relocalise(const Frame& frame, Associations& assoc, SE3& T_c_w) {
-  struct Candidate {
-    map::KeyFrameId keyframe = map::kNoId;
-    double score = 0.0;
-    std::vector<std::pair<int, map::PointId>> correspondences;  // feature, landmark
-    std::vector<Eigen::Vector3d> p_w;
-  };
-  std::vector<Candidate> candidates;
+  if (!relocalisation_work_ || relocalisation_work_->frame != frame.id) {
+    relocalisation_work_ = RelocalisationWork{};
+    relocalisation_work_->frame = frame.id;
+    find_relocalisation_candidates(frame, *relocalisation_work_);
+  }
+  RelocalisationWork& work = *relocalisation_work_;
+  relocalisation_ = work.info;
+  for (std::size_t k = 0; k < work.candidates.size(); ++k) {
+    const RelocalisationCandidate& c = work.candidates[k];
+    if (k == work.poses.size()) work.poses.push_back(solve_pnp(frame, c));
+    if (!work.poses[k]) continue;
+    SE3 pose = work.poses[k]->T_c_w;
+    assoc.clear();
+    for (int i : work.poses[k]->inliers) {
+      Match& m = assoc.points[static_cast<std::size_t>(
+          c.correspondences[static_cast<std::size_t>(i)].first)];
+      m.landmark = c.correspondences[static_cast<std::size_t>(i)].second;
+      m.p_w = c.p_w[static_cast<std::size_t>(i)];
+      m.active = true;
+    }
+    if (optimize(frame, assoc, pose) < options_.min_pose_inliers) continue;
+    T_c_w = pose;
+    relocalisation_.keyframe = c.keyframe;
+    relocalisation_.score = c.score;
+    return true;
+  }
+  assoc.clear();
+  return false;
+}
+
+void Tracker::find_relocalisation_candidates(const Frame& frame, RelocalisationWork& work) const {
+  std::vector<RelocalisationCandidate>& candidates = work.candidates;
+  RelocalisationInfo& info = work.info;
   const auto add_candidate = [&](const map::KeyFrame& kf,
                                  const std::vector<features::DescriptorMatch>& found) {
     if (found.size() < 15) return;
-    Candidate c;
+    RelocalisationCandidate c;
     c.keyframe = kf.id;
     for (const auto& m : found) {
       const map::PointId pid = kf.landmarks[static_cast<std::size_t>(m.train)];
@@ -1051,110 +1077,96 @@ bool Tracker::relocalise(const Frame& frame, Associations& assoc, SE3& T_c_w) {
   const std::vector<features::OrbDescriptor> query = frame.features->point_descriptors();
   const auto n = static_cast<std::size_t>(options_.relocalisation_candidates);
   Stopwatch watch;
-  {
-    if (map_.num_keyframes() == 0) return false;
-    const place::Database* database = map_.database();
-    if (vocabulary_ && database != nullptr && database->size() > 0) {
-      // The keyframe database's best places; features compared only under the same node.
-      const place::BowImage bow = vocabulary_->transform(query, direct_levels_up_);
-      const auto results = database->query(bow.bow, n);
-      relocalisation_.query_ms = watch.elapsed_ms();
-      watch.restart();
-      place::WordMatchOptions match;
-      match.max_distance = 64;
-      for (const auto& result : results) {
-        const map::KeyFrame* kf = map_.keyframe(result.id);
-        if (kf == nullptr || !kf->bow) continue;
-        const std::vector<features::OrbDescriptor> train = kf->features->point_descriptors();
-        const auto has_landmark = [&](int j) {
-          const map::PointId p = kf->landmarks[static_cast<std::size_t>(j)];
-          return p != map::kNoId && map_.point(p) != nullptr;
-        };
-        add_candidate(*kf, place::match_by_words(bow.direct, query, kf->bow->direct, train, match,
-                                                 {}, has_landmark));
-        if (!candidates.empty() && candidates.back().keyframe == kf->id)
-          candidates.back().score = result.score;
-      }
-      relocalisation_.by_database = true;
-    } else {
-      // Without a vocabulary: the newest keyframes, then a spread over the whole map.
-      std::vector<map::KeyFrameId> ids;
-      for (const auto& kv : map_.keyframes()) ids.push_back(kv.first);
-      std::sort(ids.begin(), ids.end(), std::greater<>());
-      std::vector<map::KeyFrameId> chosen(ids.begin(), ids.begin() + std::min(ids.size(), n / 2));
-      if (ids.size() > chosen.size()) {
-        const std::size_t rest = ids.size() - chosen.size();
-        const std::size_t want = std::min(rest, n - chosen.size());
-        for (std::size_t k = 0; k < want; ++k)
-          chosen.push_back(ids[chosen.size() + k * rest / want]);
-      }
-      for (map::KeyFrameId id : chosen) {
-        const map::KeyFrame* kf = map_.keyframe(id);
-        if (kf == nullptr) continue;
-        std::vector<features::OrbDescriptor> train;
-        std::vector<int> feature;
-        for (std::size_t i = 0; i < kf->landmarks.size(); ++i)
-          if (kf->landmarks[i] != map::kNoId && map_.point(kf->landmarks[i]) != nullptr) {
-            train.push_back(kf->features->points[i].descriptor);
-            feature.push_back(static_cast<int>(i));
-          }
-        auto found = features::match_descriptors(query, train, 64, 0.75f, true);
-        for (auto& m : found) m.train = feature[static_cast<std::size_t>(m.train)];
-        add_candidate(*kf, found);
-      }
-      relocalisation_.by_database = false;
+  if (map_.num_keyframes() == 0) return;
+  const place::Database* database = map_.database();
+  if (vocabulary_ && database != nullptr && database->size() > 0) {
+    // The keyframe database's best places; features compared only under the same node.
+    const place::BowImage bow = vocabulary_->transform(query, direct_levels_up_);
+    const auto results = database->query(bow.bow, n);
+    info.query_ms = watch.elapsed_ms();
+    watch.restart();
+    place::WordMatchOptions match;
+    match.max_distance = 64;
+    for (const auto& result : results) {
+      const map::KeyFrame* kf = map_.keyframe(result.id);
+      if (kf == nullptr || !kf->bow) continue;
+      const std::vector<features::OrbDescriptor> train = kf->features->point_descriptors();
+      const auto has_landmark = [&](int j) {
+        const map::PointId p = kf->landmarks[static_cast<std::size_t>(j)];
+        return p != map::kNoId && map_.point(p) != nullptr;
+      };
+      add_candidate(*kf, place::match_by_words(bow.direct, query, kf->bow->direct, train, match, {},
+                                               has_landmark));
+      if (!candidates.empty() && candidates.back().keyframe == kf->id)
+        candidates.back().score = result.score;
     }
+    info.by_database = true;
+  } else {
+    // Without a vocabulary: the newest keyframes, then a spread over the whole map.
+    std::vector<map::KeyFrameId> ids;
+    for (const auto& kv : map_.keyframes()) ids.push_back(kv.first);
+    std::sort(ids.begin(), ids.end(), std::greater<>());
+    std::vector<map::KeyFrameId> chosen(ids.begin(), ids.begin() + std::min(ids.size(), n / 2));
+    if (ids.size() > chosen.size()) {
+      const std::size_t rest = ids.size() - chosen.size();
+      const std::size_t want = std::min(rest, n - chosen.size());
+      for (std::size_t k = 0; k < want; ++k) chosen.push_back(ids[chosen.size() + k * rest / want]);
+    }
+    for (map::KeyFrameId id : chosen) {
+      const map::KeyFrame* kf = map_.keyframe(id);
+      if (kf == nullptr) continue;
+      std::vector<features::OrbDescriptor> train;
+      std::vector<int> feature;
+      for (std::size_t i = 0; i < kf->landmarks.size(); ++i)
+        if (kf->landmarks[i] != map::kNoId && map_.point(kf->landmarks[i]) != nullptr) {
+          train.push_back(kf->features->points[i].descriptor);
+          feature.push_back(static_cast<int>(i));
+        }
+      auto found = features::match_descriptors(query, train, 64, 0.75f, true);
+      for (auto& m : found) m.train = feature[static_cast<std::size_t>(m.train)];
+      add_candidate(*kf, found);
+    }
+    info.by_database = false;
   }
-  relocalisation_.match_ms = watch.elapsed_ms();
-  relocalisation_.candidates = static_cast<int>(candidates.size());
-  std::sort(candidates.begin(), candidates.end(), [](const Candidate& a, const Candidate& b) {
-    return a.correspondences.size() > b.correspondences.size();
-  });
+  info.match_ms = watch.elapsed_ms();
+  info.candidates = static_cast<int>(candidates.size());
+  std::sort(candidates.begin(), candidates.end(),
+            [](const RelocalisationCandidate& a, const RelocalisationCandidate& b) {
+              return a.correspondences.size() > b.correspondences.size();
+            });
+}
+
+std::optional<Tracker::PnpPose> Tracker::solve_pnp(const Frame& frame,
+                                                   const RelocalisationCandidate& c) const {
   const cv::Matx33d K(camera_.fx, 0, camera_.cx, 0, camera_.fy, camera_.cy, 0, 0, 1);
-  for (const Candidate& c : candidates) {
-    std::vector<cv::Point3f> object;
-    std::vector<cv::Point2f> image;
-    for (std::size_t k = 0; k < c.correspondences.size(); ++k) {
-      const auto& kp = frame.features->points[static_cast<std::size_t>(c.correspondences[k].first)];
-      object.emplace_back(static_cast<float>(c.p_w[k].x()), static_cast<float>(c.p_w[k].y()),
-                          static_cast<float>(c.p_w[k].z()));
-      image.emplace_back(kp.keypoint.uv.x(), kp.keypoint.uv.y());
-    }
-    cv::Mat rvec, tvec;
-    std::vector<int> inliers;
-    bool solved = false;
-    // Hypotheses from 4 points by AP3P (OpenCV then fits the inliers by EPnP): EPnP's 5-point
-    // hypotheses cost a 12x12 SVD each, and a frame lost among people, whose candidates
-    // rarely fit, spent 150 ms on them per attempt (70 ms by AP3P, relocalised on the same frame).
-    try {
-      solved = cv::solvePnPRansac(object, image, K, cv::noArray(), rvec, tvec, false, 200, 4.0f,
-                                  0.99, inliers, cv::SOLVEPNP_AP3P);
-    } catch (const cv::Exception&) {
-      solved = false;  // degenerate configuration: try the next candidate
-    }
-    if (!solved || inliers.size() < 10) continue;
-    cv::Matx33d R;
-    cv::Rodrigues(rvec, R);
-    Eigen::Matrix3d Re;
-    for (int r = 0; r < 3; ++r)
-      for (int col = 0; col < 3; ++col) Re(r, col) = R(r, col);
-    SE3 pose(Re, Eigen::Vector3d(tvec.at<double>(0), tvec.at<double>(1), tvec.at<double>(2)));
-    assoc.clear();
-    for (int k : inliers) {
-      Match& m = assoc.points[static_cast<std::size_t>(
-          c.correspondences[static_cast<std::size_t>(k)].first)];
-      m.landmark = c.correspondences[static_cast<std::size_t>(k)].second;
-      m.p_w = c.p_w[static_cast<std::size_t>(k)];
-      m.active = true;
-    }
-    if (optimize(frame, assoc, pose) < options_.min_pose_inliers) continue;
-    T_c_w = pose;
-    relocalisation_.keyframe = c.keyframe;
-    relocalisation_.score = c.score;
-    return true;
+  std::vector<cv::Point3f> object;
+  std::vector<cv::Point2f> image;
+  for (std::size_t k = 0; k < c.correspondences.size(); ++k) {
+    const auto& kp = frame.features->points[static_cast<std::size_t>(c.correspondences[k].first)];
+    object.emplace_back(static_cast<float>(c.p_w[k].x()), static_cast<float>(c.p_w[k].y()),
+                        static_cast<float>(c.p_w[k].z()));
+    image.emplace_back(kp.keypoint.uv.x(), kp.keypoint.uv.y());
   }
-  assoc.clear();
-  return false;
+  cv::Mat rvec, tvec;
+  PnpPose out;
+  bool solved = false;
+  // Hypotheses from 4 points by AP3P (OpenCV then fits the inliers by EPnP): EPnP's 5-point
+  // hypotheses cost a 12x12 SVD each, and a frame lost among people, whose candidates
+  // rarely fit, spent 150 ms on them per attempt (70 ms by AP3P, relocalised on the same frame).
+  try {
+    solved = cv::solvePnPRansac(object, image, K, cv::noArray(), rvec, tvec, false, 200, 4.0f, 0.99,
+                                out.inliers, cv::SOLVEPNP_AP3P);
+  } catch (const cv::Exception&) {
+    solved = false;  // degenerate configuration: try the next candidate
+  }
+  if (!solved || out.inliers.size() < 10) return std::nullopt;
+  cv::Matx33d R;
+  cv::Rodrigues(rvec, R);
+  Eigen::Matrix3d Re;
+  for (int r = 0; r < 3; ++r)
+    for (int col = 0; col < 3; ++col) Re(r, col) = R(r, col);
+  out.T_c_w = SE3(Re, Eigen::Vector3d(tvec.at<double>(0), tvec.at<double>(1), tvec.at<double>(2)));
+  return out;
 }
 
 bool Tracker::need_keyframe(const Frame& frame, const Associations& assoc, bool mapper_idle,

@@ -214,7 +214,33 @@ class Tracker {
   int remove_movers(const Frame& frame, Associations& assoc, SE3& T_c_w, int inliers);
   bool track_last_frame(const Frame& frame, const SE3& prediction, Associations& assoc, SE3& T_c_w);
   bool track_reference_keyframe(const Frame& frame, Associations& assoc, SE3& T_c_w);
+  /// A keyframe whose features match the frame's: its landmarks, by the frame's features.
+  struct RelocalisationCandidate {
+    map::KeyFrameId keyframe = map::kNoId;
+    double score = 0.0;
+    std::vector<std::pair<int, map::PointId>> correspondences;  // feature, landmark
+    std::vector<Eigen::Vector3d> p_w;
+  };
+  /// A candidate's PnP pose and the correspondences (by index) consistent with it.
+  struct PnpPose {
+    SE3 T_c_w;
+    std::vector<int> inliers;
+  };
+  /// One frame's relocalisation work: the candidates, best first, and the PnP poses of those
+  /// tried so far (nullopt: PnP failed). The frame's second try, with every feature (track()),
+  /// reuses them: under the map's read lock for the whole frame they are the same.
+  struct RelocalisationWork {
+    std::uint64_t frame = 0;
+    RelocalisationInfo info;
+    std::vector<RelocalisationCandidate> candidates;
+    std::vector<std::optional<PnpPose>> poses;
+  };
   bool relocalise(const Frame& frame, Associations& assoc, SE3& T_c_w);
+  /// The candidates of a relocalisation (by the keyframe database, else by brute force), best
+  /// first, and their timing in work.info.
+  void find_relocalisation_candidates(const Frame& frame, RelocalisationWork& work) const;
+  std::optional<PnpPose> solve_pnp(const Frame& frame,
+                                   const RelocalisationCandidate& candidate) const;
   /// Adds local-map matches and re-optimises. Returns the weighted inlier count.
   int track_local_map(const Frame& frame, Associations& assoc, SE3& T_c_w, double radius_factor);
   /// Matches the last frame's points projected with T_c_w; from_last gets each match's source.
@@ -254,6 +280,7 @@ class Tracker {
   std::shared_ptr<const place::Vocabulary> vocabulary_;
   int direct_levels_up_ = 3;
   RelocalisationInfo relocalisation_;
+  std::optional<RelocalisationWork> relocalisation_work_;
 
   TrackingState state_ = TrackingState::kNotInitialized;
   std::optional<LastFrame> last_;
