@@ -233,6 +233,7 @@ TrackingOutcome Tracker::track(const Frame& frame, bool mapper_idle, std::size_t
     assoc.clear();
     first = first_estimate(frame, assoc, T_c_w);
   }
+  relocalisation_work_.reset();  // kept only for the frame's second try
   if (first.relocalised) last_relocalisation_frame_ = frame.id;
   if (times) times->add("track_frame", watch.elapsed_ms());
 

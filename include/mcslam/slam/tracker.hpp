@@ -228,7 +228,8 @@ class Tracker {
   };
   /// One frame's relocalisation work: the candidates, best first, and the PnP poses of those
   /// tried so far (nullopt: PnP failed). The frame's second try, with every feature (track()),
-  /// reuses them: under the map's read lock for the whole frame they are the same.
+  /// reuses them: under the map's read lock for the whole frame they are the same. Dropped when
+  /// the frame's first estimate is done.
   struct RelocalisationWork {
     std::uint64_t frame = 0;
     RelocalisationInfo info;
