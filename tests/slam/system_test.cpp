@@ -283,6 +283,58 @@ TEST(System, RelocalisesAfterAGapWithTheCameraMoved) {
   EXPECT_TRUE(relocalised);
 }
 
+/// The same boxes for every frame, as a detector would deliver them.
+class FixedBoxes final : public DetectionSource {
+ public:
+  explicit FixedBoxes(std::vector<perception::Detection> boxes) : boxes_(std::move(boxes)) {}
+  void submit(std::uint64_t, double, const cv::Mat&, bool) override {}
+  std::optional<TimedDetections> collect(std::uint64_t frame_id, bool) override {
+    return TimedDetections{frame_id, boxes_, 0.0};
+  }
+  std::string describe() const override { return "fixed boxes"; }
+
+ private:
+  std::vector<perception::Detection> boxes_;
+};
+
+// A person's box over most of the view (the features inside stay out of the pose until the person
+// is seen to be still): a frame lost after a gap relocalises on the features around it, and
+// reports its search (the candidates, the matching's time, the keyframe).
+TEST(System, RelocalisesWithAPersonBoxOverMostOfTheView) {
+  const auto& seq = test::rendered_sequence(150, false);
+  System system(seq.camera, sequential_options());
+  perception::Detection person;
+  person.box = cv::Rect2f(0.3f * static_cast<float>(seq.camera.width), 0.0f,
+                          0.7f * static_cast<float>(seq.camera.width),
+                          static_cast<float>(seq.camera.height));
+  person.class_id = 0;
+  person.class_name = "person";
+  person.score = 0.9f;
+  system.set_detection_source(std::make_unique<FixedBoxes>(std::vector{person}), true);
+  for (int i = 0; i < 60; ++i)
+    system.process(seq.frames[i].rgb, seq.frames[i].depth, seq.groundtruth[i].timestamp);
+  const cv::Mat black = cv::Mat::zeros(seq.frames[0].rgb.size(), CV_8UC3);
+  for (int i = 60; i < 64; ++i)
+    EXPECT_EQ(system.process(black, seq.frames[i].depth, seq.groundtruth[i].timestamp).state,
+              TrackingState::kLost);
+  bool relocalised = false;
+  for (int i = 75; i < 90 && !relocalised; ++i) {
+    const FrameResult r =
+        system.process(seq.frames[i].rgb, seq.frames[i].depth, seq.groundtruth[i].timestamp);
+    relocalised = r.relocalised;
+    if (relocalised) {
+      ASSERT_TRUE(r.T_w_c.has_value());
+      const SE3 truth = seq.groundtruth[0].T_w_c.inverse() * seq.groundtruth[i].T_w_c;
+      EXPECT_LT((r.T_w_c->translation() - truth.translation()).norm(), 0.03);
+      ASSERT_TRUE(r.relocalisation.has_value());
+      EXPECT_GT(r.relocalisation->candidates, 0);
+      EXPECT_GT(r.relocalisation->match_ms, 0.0);
+      EXPECT_NE(r.relocalisation->keyframe, map::kNoId);
+    }
+  }
+  EXPECT_TRUE(relocalised);
+}
+
 TEST(System, RejectsInvalidCameraAndOptions) {
   PinholeCamera bad;
   EXPECT_THROW(System(bad, SystemOptions{}), InputError);
