@@ -19,6 +19,18 @@
 namespace mcslam::slam {
 namespace {
 
+/// The descriptors of a keyframe's features that observe a map point, and those features'
+/// indices. Call under the map's read lock.
+void landmark_descriptors(const map::Map& map, const map::KeyFrame& kf,
+                          std::vector<features::OrbDescriptor>& descriptors,
+                          std::vector<int>& indices) {
+  for (std::size_t i = 0; i < kf.landmarks.size(); ++i)
+    if (kf.landmarks[i] != map::kNoId && map.point(kf.landmarks[i]) != nullptr) {
+      descriptors.push_back(kf.features->points[i].descriptor);
+      indices.push_back(static_cast<int>(i));
+    }
+}
+
 constexpr int kRotationBins = 30;
 
 /// Keeps the matches whose keypoint-angle change falls into the three most common bins of a
@@ -625,11 +637,7 @@ bool Tracker::track_reference_keyframe(const Frame& frame, Associations& assoc, 
   if (ref == nullptr) return false;
   std::vector<features::OrbDescriptor> train;
   std::vector<int> train_index;
-  for (std::size_t i = 0; i < ref->landmarks.size(); ++i)
-    if (ref->landmarks[i] != map::kNoId && map_.point(ref->landmarks[i]) != nullptr) {
-      train.push_back(ref->features->points[i].descriptor);
-      train_index.push_back(static_cast<int>(i));
-    }
+  landmark_descriptors(map_, *ref, train, train_index);
   const std::vector<features::OrbDescriptor> query = frame.features->point_descriptors();
   const auto found =
       features::match_descriptors(query, train, options_.max_descriptor_distance, 0.7f, true);
@@ -1118,11 +1126,7 @@ void Tracker::find_relocalisation_candidates(const Frame& frame, RelocalisationW
       if (kf == nullptr) continue;
       std::vector<features::OrbDescriptor> train;
       std::vector<int> feature;
-      for (std::size_t i = 0; i < kf->landmarks.size(); ++i)
-        if (kf->landmarks[i] != map::kNoId && map_.point(kf->landmarks[i]) != nullptr) {
-          train.push_back(kf->features->points[i].descriptor);
-          feature.push_back(static_cast<int>(i));
-        }
+      landmark_descriptors(map_, *kf, train, feature);
       auto found = features::match_descriptors(query, train, 64, 0.75f, true);
       for (auto& m : found) m.train = feature[static_cast<std::size_t>(m.train)];
       add_candidate(*kf, found);
