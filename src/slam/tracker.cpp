@@ -1038,9 +1038,8 @@ int Tracker::remove_movers(const Frame& frame, Associations& assoc, SE3& T_c_w, 
 }
 
 bool Tracker::relocalise(const Frame& frame, Associations& assoc, SE3& T_c_w) {
-  if (!relocalisation_work_ || relocalisation_work_->frame != frame.id) {
-    relocalisation_work_ = RelocalisationWork{};
-    relocalisation_work_->frame = frame.id;
+  if (!relocalisation_work_) {
+    relocalisation_work_.emplace();
     find_relocalisation_candidates(frame, *relocalisation_work_);
   }
   RelocalisationWork& work = *relocalisation_work_;

@@ -228,10 +228,9 @@ class Tracker {
   };
   /// One frame's relocalisation work: the candidates, best first, and the PnP poses of those
   /// tried so far (nullopt: PnP failed). The frame's second try, with every feature (track()),
-  /// reuses them: under the map's read lock for the whole frame they are the same. Dropped when
-  /// the frame's first estimate is done.
+  /// reuses them: under the map's read lock for the whole frame they are the same. Made by the
+  /// frame's first try, dropped when its first estimate is done (so it never outlives the frame).
   struct RelocalisationWork {
-    std::uint64_t frame = 0;
     RelocalisationInfo info;
     std::vector<RelocalisationCandidate> candidates;
     std::vector<std::optional<PnpPose>> poses;
