@@ -533,8 +533,9 @@ nlohmann::json run_frames(const RunRequest& request, const std::string& source_p
   summary["relocalisations"] = recorder.relocalised;
   {
     const SampleStats q = compute_stats(recorder.reloc_query_ms);
-    summary["relocalisation"] = {{"attempts", recorder.reloc_query_ms.size()},
+    summary["relocalisation"] = {{"attempts", recorder.reloc_query_ms.size() + recorder.recovered},
                                  {"succeeded", recorder.relocalised},
+                                 {"from_last_pose", recorder.recovered},
                                  {"by_database", recorder.reloc_by_database},
                                  {"query_median_ms", q.median},
                                  {"query_p95_ms", q.p95},

@@ -75,11 +75,14 @@ void FrameRecorder::on_frame(const FrameEvent& e) {
   lost += r.state == slam::TrackingState::kLost ? 1 : 0;
   relocalised += r.relocalised ? 1 : 0;
   if (r.relocalisation) {
-    reloc_query_ms.push_back(r.relocalisation->query_ms);
+    const bool from_last_pose = r.relocalisation->from_last_pose;
+    if (!from_last_pose) reloc_query_ms.push_back(r.relocalisation->query_ms);
     reloc_by_database = reloc_by_database || r.relocalisation->by_database;
+    recovered += r.relocalised && from_last_pose ? 1 : 0;
     if (r.relocalised)
       reloc_events.push_back({{"frame", r.frame_id},
                               {"timestamp", r.timestamp},
+                              {"from_last_pose", from_last_pose},
                               {"by_database", r.relocalisation->by_database},
                               {"keyframe", r.relocalisation->keyframe},
                               {"score", r.relocalisation->score},

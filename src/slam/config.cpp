@@ -96,6 +96,7 @@ std::vector<Field> mcslam_fields(PinholeCamera& c, SystemOptions& o) {
       {"tracker.close_tracked_threshold", &t.close_tracked_threshold},
       {"tracker.close_untracked_threshold", &t.close_untracked_threshold},
       {"tracker.relocalisation_candidates", &t.relocalisation_candidates},
+      {"tracker.recovery_window", &t.recovery_window},
       {"tracker.min_initial_points", &t.min_initial_points},
       {"tracker.min_initial_lines", &t.min_initial_lines},
       {"tracker.plane_inlier_weight", &t.plane_inlier_weight},

@@ -1,5 +1,6 @@
 #include "mcslam/slam/options.hpp"
 
+#include <cmath>
 #include <cstdlib>
 
 #include "mcslam/core/data_files.hpp"
@@ -34,6 +35,8 @@ std::optional<std::string> TrackerOptions::check() const {
   if (!(keyframe_ref_ratio > 0.0 && keyframe_ref_ratio <= 1.0))
     return "tracker.keyframe_ref_ratio must be in (0, 1]";
   if (relocalisation_candidates < 1) return "tracker.relocalisation_candidates must be >= 1";
+  if (!std::isfinite(recovery_window) || recovery_window < 0.0)
+    return "tracker.recovery_window must be finite and >= 0";
   if (min_initial_points < 10) return "tracker.min_initial_points must be at least 10";
   if (min_initial_lines < 3) return "tracker.min_initial_lines must be at least 3";
   if (plane_inlier_weight < 0) return "tracker.plane_inlier_weight must not be negative";

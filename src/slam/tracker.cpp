@@ -285,14 +285,8 @@ SE3 Tracker::predict(const Frame& frame, const SE3& T_last) const {
 
 Tracker::FirstEstimate Tracker::first_estimate(const Frame& frame, Associations& assoc,
                                                SE3& T_c_w) {
+  if (state_ != TrackingState::kOk) return find_again(frame, assoc, T_c_w);
   FirstEstimate first;
-  if (state_ != TrackingState::kOk) {
-    relocalisation_ = RelocalisationInfo{};
-    first.ok = relocalise(frame, assoc, T_c_w);
-    first.relocalised = first.ok;
-    first.tried_relocalisation = true;
-    return first;
-  }
   if (const std::optional<SE3> T_last = last_frame_pose()) {
     first.ok = track_last_frame(frame, predict(frame, *T_last), assoc, T_c_w);
     // A sudden motion breaks the constant-velocity model: retry from the last pose.
@@ -1035,6 +1029,36 @@ int Tracker::remove_movers(const Frame& frame, Associations& assoc, SE3& T_c_w, 
     if (moved_set_.insert(id).second) moved_points_.push_back(id);
   // The movers' features leave the optimisation (optimize() marks them as outliers).
   return optimize(frame, assoc, T_c_w);
+}
+
+Tracker::FirstEstimate Tracker::find_again(const Frame& frame, Associations& assoc, SE3& T_c_w) {
+  FirstEstimate first;
+  first.tried_relocalisation = true;
+  relocalisation_ = RelocalisationInfo{};
+  // From the pose before the loss, as a tracked frame would be (without the velocity, which the
+  // loss reset), while the camera cannot have left that view.
+  const std::optional<SE3> T_last = last_frame_pose();
+  if (T_last && options_.recovery_window > 0.0 &&
+      frame.timestamp - last_->frame.timestamp <= options_.recovery_window) {
+    first.ok = track_last_frame(frame, *T_last, assoc, T_c_w);
+    if (!first.ok) {
+      assoc.clear();
+      first.ok = track_reference_keyframe(frame, assoc, T_c_w);
+    }
+    // The planes alone (a blank colour image) do not find the camera again.
+    first.ok = first.ok &&
+               assoc.inlier_points(false) + assoc.inlier_lines(false) >= options_.min_pose_inliers;
+    if (first.ok) {
+      relocalisation_.from_last_pose = true;
+      relocalisation_.keyframe = reference_;
+      first.relocalised = true;  // the same test as a relocalisation's
+      return first;
+    }
+    assoc.clear();
+  }
+  first.ok = relocalise(frame, assoc, T_c_w);
+  first.relocalised = first.ok;
+  return first;
 }
 
 bool Tracker::relocalise(const Frame& frame, Associations& assoc, SE3& T_c_w) {

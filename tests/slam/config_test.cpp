@@ -118,6 +118,13 @@ TEST(Config, UnknownKeysAndBadValuesAreErrorsNamingTheFile) {
     const std::string m = message_of([&] { apply_config(bad, good, fresh); });
     EXPECT_NE(m.find("tracker.established_"), std::string::npos) << text << ": " << m;
   }
+  for (const char* text :
+       {"tracker: {recovery_window: -0.5}\n", "tracker: {recovery_window: x}\n"}) {
+    SystemOptions fresh;
+    io::ConfigFile bad = io::ConfigFile::from_string(text, "recovery.yaml");
+    const std::string m = message_of([&] { apply_config(bad, good, fresh); });
+    EXPECT_NE(m.find("tracker.recovery_window"), std::string::npos) << text << ": " << m;
+  }
   SystemOptions own;
   io::ConfigFile own_size =
       io::ConfigFile::from_string("system: {detector_scale: 0}\n", "own.yaml");

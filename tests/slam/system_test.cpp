@@ -260,6 +260,7 @@ TEST(System, BadFramesAreLostNotCrashes) {
 
 /// Tracks frames 0-59, loses four black frames, skips 64-74 (the camera moves on) and returns
 /// the first frame from 75 on that relocalises (nullopt if none before 90), checking its pose.
+/// Frame 75 is 0.53 s after frame 59, the last one tracked: longer than the recovery window.
 std::optional<FrameResult> relocalise_after_gap(System& system, const test::RenderedSequence& seq) {
   for (int i = 0; i < 60; ++i)
     system.process(seq.frames[i].rgb, seq.frames[i].depth, seq.groundtruth[i].timestamp);
@@ -285,7 +286,34 @@ std::optional<FrameResult> relocalise_after_gap(System& system, const test::Rend
 TEST(System, RelocalisesAfterAGapWithTheCameraMoved) {
   const auto& seq = test::rendered_sequence(150, false);
   System system(seq.camera, sequential_options());
-  EXPECT_TRUE(relocalise_after_gap(system, seq).has_value());
+  const std::optional<FrameResult> r = relocalise_after_gap(system, seq);
+  ASSERT_TRUE(r.has_value());
+  ASSERT_TRUE(r->relocalisation.has_value());
+  EXPECT_FALSE(r->relocalisation->from_last_pose);
+  EXPECT_GT(r->relocalisation->candidates, 0);
+}
+
+// Within the recovery window (frame 64 is 0.17 s after frame 59, the last one tracked) the first
+// frame after the loss is found again from the pose before it, without a place search.
+TEST(System, FindsItsPoseAgainFromThePoseBeforeARecentLoss) {
+  const auto& seq = test::rendered_sequence(150, false);
+  System system(seq.camera, sequential_options());
+  for (int i = 0; i < 60; ++i)
+    system.process(seq.frames[i].rgb, seq.frames[i].depth, seq.groundtruth[i].timestamp);
+  const cv::Mat black = cv::Mat::zeros(seq.frames[0].rgb.size(), CV_8UC3);
+  for (int i = 60; i < 64; ++i)
+    EXPECT_EQ(system.process(black, seq.frames[i].depth, seq.groundtruth[i].timestamp).state,
+              TrackingState::kLost);
+  const FrameResult r =
+      system.process(seq.frames[64].rgb, seq.frames[64].depth, seq.groundtruth[64].timestamp);
+  ASSERT_EQ(r.state, TrackingState::kOk);
+  EXPECT_TRUE(r.relocalised);
+  ASSERT_TRUE(r.relocalisation.has_value());
+  EXPECT_TRUE(r.relocalisation->from_last_pose);
+  EXPECT_EQ(r.relocalisation->candidates, 0);
+  ASSERT_TRUE(r.T_w_c.has_value());
+  const SE3 truth = seq.groundtruth[0].T_w_c.inverse() * seq.groundtruth[64].T_w_c;
+  EXPECT_LT((r.T_w_c->translation() - truth.translation()).norm(), 0.03);
 }
 
 /// The same boxes for every frame, as a detector would deliver them.

@@ -58,6 +58,16 @@ struct TrackerOptions {
   /// Relocalisation: keyframes tried per lost frame (the keyframe database's best results; the
   /// newest and a spread over the map without a vocabulary).
   int relocalisation_candidates = 30;
+  /// A frame lost within this many seconds of the last tracked one is first tracked from that
+  /// frame's pose (its points, then the reference keyframe's by descriptor); relocalisation's
+  /// place search runs only when that fails, and the result must pass relocalisation's test
+  /// (min_relocalisation_inliers). Half a second: at freiburg1_rpy's turn rate (a fast hand-held
+  /// sequence: 0.86 rad over a second, median) the camera turns by 0.43 rad, less than half the
+  /// field of view (0.55 rad for a 525 px focal length over 640 px), so the reference keyframe's
+  /// view still overlaps the frame's (Bonn crowd turns 0.15 rad in a second). A frame lost among
+  /// people, whose place search finds few static matches, is found again from the static part
+  /// that was being tracked. 0: off.
+  double recovery_window = 0.5;
   /// Frames that need this many keypoints with depth to start the map.
   int min_initial_points = 500;
   /// With lines, a frame with fewer points may also start the map when it has at least this

@@ -62,6 +62,9 @@ struct KeyFrameRequest {
 
 /// A relocalisation attempt (a lost frame).
 struct RelocalisationInfo {
+  /// Found again by tracking from the pose before the loss (the last frame's, then the
+  /// reference keyframe's features), without a place search; the fields below stay empty.
+  bool from_last_pose = false;
   bool by_database = false;  // candidates from the keyframe database (else brute force)
   double query_ms = 0.0;     // finding the candidate keyframes (the database query)
   double match_ms = 0.0;     // matching the frame's features with theirs
@@ -195,6 +198,9 @@ class Tracker {
     bool tried_relocalisation = false;
   };
   FirstEstimate first_estimate(const Frame& frame, Associations& assoc, SE3& T_c_w);
+  /// A lost frame's first estimate: from the pose before the loss while it is recent
+  /// (recovery_window), else by relocalisation.
+  FirstEstimate find_again(const Frame& frame, Associations& assoc, SE3& T_c_w);
   /// The constant-velocity prediction of the frame's pose from the last frame's.
   SE3 predict(const Frame& frame, const SE3& T_last) const;
   /// The local map's matches, the movers without a box, and the frame's success test.
