@@ -258,25 +258,34 @@ TEST(System, BadFramesAreLostNotCrashes) {
       TrackingState::kOk);
 }
 
-/// Tracks frames 0-59, loses four black frames, skips 64-74 (the camera moves on) and returns
-/// the first frame from 75 on that relocalises (nullopt if none before 90), checking its pose.
-/// Frame 75 is 0.53 s after frame 59, the last one tracked: longer than the recovery window.
-std::optional<FrameResult> relocalise_after_gap(System& system, const test::RenderedSequence& seq) {
+/// Tracks frames 0-59 and loses frames 60-63 (black colour images).
+void track_then_lose(System& system, const test::RenderedSequence& seq) {
   for (int i = 0; i < 60; ++i)
     system.process(seq.frames[i].rgb, seq.frames[i].depth, seq.groundtruth[i].timestamp);
   const cv::Mat black = cv::Mat::zeros(seq.frames[0].rgb.size(), CV_8UC3);
   for (int i = 60; i < 64; ++i)
     EXPECT_EQ(system.process(black, seq.frames[i].depth, seq.groundtruth[i].timestamp).state,
               TrackingState::kLost);
+}
+
+/// World frame = first camera: the distance of a frame's pose from the ground truth's.
+double position_error(const test::RenderedSequence& seq, int i, const SE3& T_w_c) {
+  const SE3 truth = seq.groundtruth[0].T_w_c.inverse() * seq.groundtruth[i].T_w_c;
+  return (T_w_c.translation() - truth.translation()).norm();
+}
+
+/// track_then_lose, skips 64-74 (the camera moves on) and returns the first frame from 75 on
+/// that relocalises (nullopt if none before 90), checking its pose. Frame 75 is 0.53 s after
+/// frame 59, the last one tracked: longer than the recovery window.
+std::optional<FrameResult> relocalise_after_gap(System& system, const test::RenderedSequence& seq) {
+  track_then_lose(system, seq);
   for (int i = 75; i < 90; ++i) {
     FrameResult r =
         system.process(seq.frames[i].rgb, seq.frames[i].depth, seq.groundtruth[i].timestamp);
     if (!r.relocalised) continue;
     EXPECT_TRUE(r.T_w_c.has_value());
     if (r.T_w_c) {
-      // World frame = first camera: compare with ground truth relative to frame 0.
-      const SE3 truth = seq.groundtruth[0].T_w_c.inverse() * seq.groundtruth[i].T_w_c;
-      EXPECT_LT((r.T_w_c->translation() - truth.translation()).norm(), 0.03);
+      EXPECT_LT(position_error(seq, i, *r.T_w_c), 0.03);
     }
     return r;
   }
@@ -298,12 +307,7 @@ TEST(System, RelocalisesAfterAGapWithTheCameraMoved) {
 TEST(System, FindsItsPoseAgainFromThePoseBeforeARecentLoss) {
   const auto& seq = test::rendered_sequence(150, false);
   System system(seq.camera, sequential_options());
-  for (int i = 0; i < 60; ++i)
-    system.process(seq.frames[i].rgb, seq.frames[i].depth, seq.groundtruth[i].timestamp);
-  const cv::Mat black = cv::Mat::zeros(seq.frames[0].rgb.size(), CV_8UC3);
-  for (int i = 60; i < 64; ++i)
-    EXPECT_EQ(system.process(black, seq.frames[i].depth, seq.groundtruth[i].timestamp).state,
-              TrackingState::kLost);
+  track_then_lose(system, seq);
   const FrameResult r =
       system.process(seq.frames[64].rgb, seq.frames[64].depth, seq.groundtruth[64].timestamp);
   ASSERT_EQ(r.state, TrackingState::kOk);
@@ -312,8 +316,7 @@ TEST(System, FindsItsPoseAgainFromThePoseBeforeARecentLoss) {
   EXPECT_TRUE(r.relocalisation->from_last_pose);
   EXPECT_EQ(r.relocalisation->candidates, 0);
   ASSERT_TRUE(r.T_w_c.has_value());
-  const SE3 truth = seq.groundtruth[0].T_w_c.inverse() * seq.groundtruth[64].T_w_c;
-  EXPECT_LT((r.T_w_c->translation() - truth.translation()).norm(), 0.03);
+  EXPECT_LT(position_error(seq, 64, *r.T_w_c), 0.03);
 }
 
 /// The same boxes for every frame, as a detector would deliver them.
