@@ -191,7 +191,7 @@ class Tracker {
 
   TrackingOutcome initialize(const Frame& frame);
   /// The frame's first estimate: from the last frame, else the reference keyframe; when lost,
-  /// relocalisation.
+  /// find_again.
   struct FirstEstimate {
     bool ok = false;
     bool relocalised = false;
