@@ -246,7 +246,9 @@ TrackingOutcome Tracker::track(const Frame& frame, bool mapper_idle, std::size_t
     first = first_estimate(frame, assoc, T_c_w);
   }
   relocalisation_work_.reset();  // kept only for the frame's second try
-  if (first.relocalised) last_relocalisation_frame_ = frame.id;
+  // After a place search's pose the next frames are held to its stricter test (ORB-SLAM2's
+  // rule); a pose found from the last one was tracked, not guessed, and only its own frame is.
+  if (first.relocalised && !relocalisation_.from_last_pose) last_relocalisation_frame_ = frame.id;
   if (times) times->add("track_frame", watch.elapsed_ms());
 
   if (first.ok && objects_.any()) {
@@ -308,12 +310,12 @@ bool Tracker::refine_with_local_map(const Frame& frame, Associations& assoc, SE3
   int inliers =
       track_local_map(frame, assoc, T_c_w, recent_reloc ? 5.0 : options_.local_map_search_radius);
   inliers = remove_movers(frame, assoc, T_c_w, inliers);
-  const int needed = frame.id < last_relocalisation_frame_ + options_.max_frames_between_keyframes
-                         ? options_.min_relocalisation_inliers
-                         : options_.min_local_map_inliers;
+  const bool after_place_search =
+      last_relocalisation_frame_ > 0 &&
+      frame.id < last_relocalisation_frame_ + options_.max_frames_between_keyframes;
   const bool ok =
-      inliers >=
-      (relocalised || last_relocalisation_frame_ > 0 ? needed : options_.min_local_map_inliers);
+      inliers >= (relocalised || after_place_search ? options_.min_relocalisation_inliers
+                                                    : options_.min_local_map_inliers);
   // Planes help but never carry tracking alone: with a blank colour image the frame is lost.
   return ok && assoc.inlier_points(false) + assoc.inlier_lines(false) >= options_.min_pose_inliers;
 }
