@@ -289,19 +289,25 @@ Tracker::FirstEstimate Tracker::first_estimate(const Frame& frame, Associations&
                                                SE3& T_c_w) {
   if (state_ != TrackingState::kOk) return find_again(frame, assoc, T_c_w);
   FirstEstimate first;
+  first.ok = track_from_last_frame(frame, assoc, T_c_w);
+  return first;
+}
+
+bool Tracker::track_from_last_frame(const Frame& frame, Associations& assoc, SE3& T_c_w) {
+  bool ok = false;
   if (const std::optional<SE3> T_last = last_frame_pose()) {
-    first.ok = track_last_frame(frame, predict(frame, *T_last), assoc, T_c_w);
+    ok = track_last_frame(frame, predict(frame, *T_last), assoc, T_c_w);
     // A sudden motion breaks the constant-velocity model: retry from the last pose.
-    if (!first.ok && velocity_) {
+    if (!ok && velocity_) {
       assoc.clear();
-      first.ok = track_last_frame(frame, *T_last, assoc, T_c_w);
+      ok = track_last_frame(frame, *T_last, assoc, T_c_w);
     }
   }
-  if (!first.ok) {
+  if (!ok) {
     assoc.clear();
-    first.ok = track_reference_keyframe(frame, assoc, T_c_w);
+    ok = track_reference_keyframe(frame, assoc, T_c_w);
   }
-  return first;
+  return ok;
 }
 
 bool Tracker::refine_with_local_map(const Frame& frame, Associations& assoc, SE3& T_c_w,
@@ -1039,16 +1045,10 @@ Tracker::FirstEstimate Tracker::find_again(const Frame& frame, Associations& ass
   relocalisation_ = RelocalisationInfo{};
   // From the pose before the loss, as a tracked frame would be (without the velocity, which the
   // loss reset), while the camera cannot have left that view.
-  const std::optional<SE3> T_last = last_frame_pose();
-  if (T_last && options_.recovery_window > 0.0 &&
+  if (last_ && options_.recovery_window > 0.0 &&
       frame.timestamp - last_->frame.timestamp <= options_.recovery_window) {
-    first.ok = track_last_frame(frame, *T_last, assoc, T_c_w);
-    if (!first.ok) {
-      assoc.clear();
-      first.ok = track_reference_keyframe(frame, assoc, T_c_w);
-    }
     // The planes alone (a blank colour image) do not find the camera again.
-    first.ok = first.ok &&
+    first.ok = track_from_last_frame(frame, assoc, T_c_w) &&
                assoc.inlier_points(false) + assoc.inlier_lines(false) >= options_.min_pose_inliers;
     if (first.ok) {
       relocalisation_.from_last_pose = true;

@@ -198,6 +198,9 @@ class Tracker {
     bool tried_relocalisation = false;
   };
   FirstEstimate first_estimate(const Frame& frame, Associations& assoc, SE3& T_c_w);
+  /// From the last frame (at the predicted pose, then at its own), else from the reference
+  /// keyframe's features at the last pose. A lost tracker has no velocity: the last pose only.
+  bool track_from_last_frame(const Frame& frame, Associations& assoc, SE3& T_c_w);
   /// A lost frame's first estimate: from the pose before the loss while it is recent
   /// (recovery_window), else by relocalisation.
   FirstEstimate find_again(const Frame& frame, Associations& assoc, SE3& T_c_w);
