@@ -75,6 +75,7 @@ void FrameRecorder::on_frame(const FrameEvent& e) {
   lost += r.state == slam::TrackingState::kLost ? 1 : 0;
   relocalised += r.relocalised ? 1 : 0;
   if (r.relocalisation) {
+    ++reloc_attempts;
     const bool from_last_pose = r.relocalisation->from_last_pose;
     if (!from_last_pose) reloc_query_ms.push_back(r.relocalisation->query_ms);
     reloc_by_database = reloc_by_database || r.relocalisation->by_database;

@@ -67,6 +67,7 @@ class FrameRecorder : public FrameObserver {
   std::vector<float> rss_mib;
   nlohmann::json reloc_events = nlohmann::json::array();
   bool reloc_by_database = false;
+  int reloc_attempts = 0;  // lost frames that tried to find their pose again
   int recovered = 0;  // relocalisations from the pose before the loss (tracker.recovery_window)
   std::map<std::string, std::vector<double>> counts;  // per-frame feature and inlier counts
 

@@ -86,7 +86,12 @@ TEST_F(SessionCli, LocalisesInASavedMapWithoutChangingIt) {
   EXPECT_TRUE(again["session"]["localize"].get<bool>());
   // The first frame is found in the map through the keyframe database.
   ASSERT_GE(again["relocalisation"]["succeeded"].get<int>(), 1);
+  EXPECT_GE(again["relocalisation"]["attempts"].get<int>(),
+            again["relocalisation"]["succeeded"].get<int>());
   EXPECT_TRUE(again["relocalisation"]["events"][0]["by_database"].get<bool>());
+  // A loaded session has no pose before a loss to start from.
+  EXPECT_FALSE(again["relocalisation"]["events"][0]["from_last_pose"].get<bool>());
+  EXPECT_EQ(again["relocalisation"]["from_last_pose"].get<int>(), 0);
 }
 
 TEST_F(SessionCli, MapsOnInALoadedSession) {
