@@ -8,19 +8,17 @@
 #include <numbers>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
-#include <opencv2/line_descriptor.hpp>
 #include <opencv2/ximgproc/fast_line_detector.hpp>
 #include <optional>
 #include <utility>
 #include <vector>
 
+#include "line_band_descriptor.hpp"
 #include "mcslam/core/error.hpp"
 #include "mcslam/features/lines.hpp"
 
 namespace mcslam::features {
 namespace {
-
-namespace ld = cv::line_descriptor;
 
 /// Fraction of the segment skipped at each end when sampling depth: LSD endpoints are the least
 /// precise part of a segment and often touch the next surface (corners, occlusions).
@@ -41,8 +39,9 @@ constexpr double kMinRayAngleDeg = 10.0;
 /// Hypotheses from sample pairs less than 1/kMinPairGapDivisor of the valid samples apart are not
 /// tried: their direction is poorly determined and the wider pairs already cover every layout.
 constexpr int kMinPairGapDivisor = 4;
-/// BinaryDescriptor stores pixel coordinates and sizes in `short`.
-constexpr int kMaxDescriptorImageSide = 32000;
+/// Larger detection images are refused: the detectors store coordinates in `float` and a frame
+/// that size is not a camera's.
+constexpr int kMaxDetectionImageSide = 32000;
 
 /// Liang-Barsky clipping of the segment a-b to [0, w-1] x [0, h-1]; false when nothing is left.
 bool clip_to_image(Eigen::Vector2d& a, Eigen::Vector2d& b, double w, double h) {
@@ -287,12 +286,10 @@ Eigen::Vector3d LineFeature::coefficients() const {
 struct LineExtractor::Impl {
   cv::Ptr<cv::LineSegmentDetector> lsd;
   cv::Ptr<cv::ximgproc::FastLineDetector> fld;
-  cv::Ptr<ld::BinaryDescriptor> lbd;
   // Scratch buffers reused between frames (hence: one extractor per thread).
+  detail::LineBandDescriber lbd;
   cv::Mat scaled;
   std::vector<cv::Vec4f> segments;
-  std::vector<ld::KeyLine> keylines;
-  cv::Mat descriptors;
 };
 
 LineExtractor::LineExtractor(const LineOptions& options) : options_(options) {
@@ -309,7 +306,6 @@ LineExtractor::LineExtractor(const LineOptions& options) : options_(options) {
   } else {
     impl_->lsd = cv::createLineSegmentDetector(cv::LSD_REFINE_STD, 1.0);
   }
-  impl_->lbd = ld::BinaryDescriptor::createBinaryDescriptor();
 }
 
 LineExtractor::~LineExtractor() = default;
@@ -321,9 +317,9 @@ std::vector<LineFeature> LineExtractor::extract(const cv::Mat& gray) const {
   const double scale = options_.detection_scale;
   const cv::Size size(std::max(1, static_cast<int>(std::lround(gray.cols * scale))),
                       std::max(1, static_cast<int>(std::lround(gray.rows * scale))));
-  // LSD needs a few pixels for its gradients; the descriptor stores coordinates in `short`.
+  // The detectors need a few pixels for their gradients.
   if (size.width < 8 || size.height < 8) return result;
-  if (size.width > kMaxDescriptorImageSide || size.height > kMaxDescriptorImageSide) return result;
+  if (size.width > kMaxDetectionImageSide || size.height > kMaxDetectionImageSide) return result;
 
   // The scratch buffer never refers to the caller's image (a later resize would write into it).
   const bool rescale = size != gray.size();
@@ -390,69 +386,18 @@ std::vector<LineFeature> LineExtractor::extract(const cv::Mat& gray) const {
     }
   }
 
-  // LBD on the detection image, where LSD found the segments (so its 9 bands of 7 pixels are
-  // detection-image pixels): at full resolution the descriptor costs ~3x more, its support
-  // region growing with the segment length in pixels (~8 ms for 80 segments at 640x480).
-  impl.keylines.clear();
-  impl.keylines.reserve(candidates.size());
-  const float max_side = static_cast<float>(std::max(size.width, size.height));
-  for (std::size_t i = 0; i < candidates.size(); ++i) {
-    const Eigen::Vector2d a = to_scaled(candidates[i].start);
-    const Eigen::Vector2d b = to_scaled(candidates[i].end);
-    ld::KeyLine kl;
-    // The image handed to compute() is the detection image, so it is both the "original" image
-    // and octave 0 of the descriptor's pyramid.
-    kl.startPointX = static_cast<float>(a.x());
-    kl.startPointY = static_cast<float>(a.y());
-    kl.endPointX = static_cast<float>(b.x());
-    kl.endPointY = static_cast<float>(b.y());
-    kl.sPointInOctaveX = kl.startPointX;
-    kl.sPointInOctaveY = kl.startPointY;
-    kl.ePointInOctaveX = kl.endPointX;
-    kl.ePointInOctaveY = kl.endPointY;
-    const float dx = kl.endPointX - kl.startPointX;
-    const float dy = kl.endPointY - kl.startPointY;
-    kl.lineLength = std::sqrt(dx * dx + dy * dy);
-    // Direction start -> end: LSD orients segments by the gradient polarity, so the descriptor
-    // (which depends on it) is comparable between views.
-    kl.angle = std::atan2(dy, dx);
-    kl.octave = 0;
-    kl.pt =
-        cv::Point2f(0.5f * (kl.startPointX + kl.endPointX), 0.5f * (kl.startPointY + kl.endPointY));
-    kl.size = std::abs(dx * dy);  // area of the segment's bounding box, as OpenCV's detectors
-    kl.class_id = static_cast<int>(i);
-    // Pixels an 8-connected raster of the segment covers (cv::LineIterator's count).
-    kl.numOfPixels = static_cast<int>(std::lround(std::max(std::abs(dx), std::abs(dy)))) + 1;
-    kl.response = kl.lineLength / max_side;
-    impl.keylines.push_back(kl);
-  }
-  try {
-    impl.lbd->compute(image, impl.keylines, impl.descriptors);
-  } catch (const cv::Exception&) {
-    return result;
-  }
-  if (impl.descriptors.type() != CV_8UC1 || impl.descriptors.cols != 32 ||
-      impl.descriptors.rows != static_cast<int>(impl.keylines.size()))
-    return result;
-
-  // compute() may in principle reorder or drop keylines: rows follow `keylines`, and class_id
-  // names the candidate.
-  std::vector<char> described(candidates.size(), 0);
-  std::vector<LineDescriptor> descriptors(candidates.size());
-  for (std::size_t r = 0; r < impl.keylines.size(); ++r) {
-    const int id = impl.keylines[r].class_id;
-    if (id < 0 || id >= static_cast<int>(candidates.size())) continue;
-    std::memcpy(descriptors[static_cast<std::size_t>(id)].bytes.data(),
-                impl.descriptors.ptr<std::uint8_t>(static_cast<int>(r)), 32);
-    described[static_cast<std::size_t>(id)] = 1;
-  }
+  // LBD on the detection image, where the segments were found (so its 9 bands of 7 pixels are
+  // detection-image pixels, 63 across: about 16 cm at 1 m in freiburg1's camera at 0.4), from
+  // one gradient image (line_band_descriptor.hpp). The direction start -> end is the detector's:
+  // LSD and FLD orient a segment by its gradient's polarity, so the descriptor (which depends on
+  // it) is comparable between views.
+  if (!impl.lbd.set_image(image)) return result;
   result.reserve(candidates.size());
-  for (std::size_t i = 0; i < candidates.size(); ++i) {
-    if (!described[i]) continue;
+  for (const Candidate& c : candidates) {
     LineFeature f;
-    f.start = candidates[i].start.cast<float>();
-    f.end = candidates[i].end.cast<float>();
-    f.descriptor = descriptors[i];
+    f.start = c.start.cast<float>();
+    f.end = c.end.cast<float>();
+    f.descriptor = impl.lbd.describe(to_scaled(c.start), to_scaled(c.end));
     result.push_back(f);
   }
   return result;

@@ -24,7 +24,9 @@ static_assert(std::endian::native == std::endian::little,
               "session files are little-endian and written with memcpy");
 
 constexpr char kMagic[8] = {'M', 'C', 'S', 'L', 'S', 'E', 'S', '\0'};
-constexpr std::uint32_t kFormatVersion = 1;
+/// 2: line descriptors are mcslam's own LBD (line_band_descriptor.hpp), no longer OpenCV's; a
+/// version 1 file's lines would match nothing, so it is refused rather than half used.
+constexpr std::uint32_t kFormatVersion = 2;
 constexpr std::size_t kHeaderBytes = sizeof(kMagic) + sizeof(std::uint32_t);
 constexpr std::size_t kChecksumBytes = sizeof(std::uint64_t);
 

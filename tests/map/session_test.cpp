@@ -458,8 +458,10 @@ TEST_F(SessionFileErrors, MissingEmptyForeignAndNewerFiles) {
   expect_error("vocabulary.session", "MCSLVOC" + std::string(1, '\0') + bytes_.substr(8),
                {"not an mcslam session"});
   std::string version = bytes_;
-  version[8] = 2;
-  expect_error("version.session", version, {"version 2", "reads version 1"});
+  version[8] = 3;
+  expect_error("version.session", version, {"version 3", "reads version 2"});
+  version[8] = 1;
+  expect_error("old.session", version, {"version 1", "reads version 2"});
 }
 
 TEST_F(SessionFileErrors, TruncatedFilesAreOneErrorNamingTheFile) {
@@ -544,7 +546,7 @@ struct Handmade {
 
   std::string bytes() const {
     Bytes b;
-    b.raw(std::string("MCSLSES") + '\0').put<std::uint32_t>(1);
+    b.raw(std::string("MCSLSES") + '\0').put<std::uint32_t>(2);  // format version
     // Session info: camera, vocabulary, ORB pyramid.
     b.f64(fx).f64(525.0).f64(319.5).f64(239.5).i32(640).i32(480);
     for (int i = 0; i < 5; ++i) b.f64(0.0);
