@@ -1080,11 +1080,11 @@ PlaneExtractor::PlaneExtractor(const PinholeCamera& camera, const PlaneOptions& 
   if (auto problem = camera_.check()) throw InputError("plane extractor camera: " + *problem);
 }
 
-PlaneExtraction PlaneExtractor::extract(const cv::Mat& depth) const {
+PlaneExtraction PlaneExtractor::extract(const cv::Mat& depth, Labels labels) const {
   if (depth.empty()) return {};
   if (depth.type() != CV_32FC1 || depth.cols != camera_.width || depth.rows != camera_.height) {
     PlaneExtraction result;
-    result.labels = cv::Mat(depth.size(), CV_8SC1, cv::Scalar(-1));
+    if (labels == Labels::kFull) result.labels = cv::Mat(depth.size(), CV_8SC1, cv::Scalar(-1));
     return result;
   }
   std::lock_guard<std::mutex> lock(workspace_->mutex);
@@ -1092,6 +1092,8 @@ PlaneExtraction PlaneExtractor::extract(const cv::Mat& depth) const {
   if (step == 1) {
     PlaneExtraction result = Extraction(camera_, options_, depth, workspace_->buffers).run();
     merge_coplanar(options_, result);
+    // At full resolution the labels come with the final fits (assign_pixels) at no extra cost.
+    if (labels == Labels::kNone) result.labels.release();
     return result;
   }
   // Every step-th pixel of every step-th row, as a camera whose pixels are step times larger
@@ -1116,6 +1118,11 @@ PlaneExtraction PlaneExtractor::extract(const cv::Mat& depth) const {
   options.cell_size = options_.cell_size / step;
   PlaneExtraction result = Extraction(camera, options, sampled, workspace_->buffers).run();
   merge_coplanar(options, result);
+  if (labels == Labels::kNone) {
+    for (PlaneFeature& plane : result.planes) plane.num_pixels *= step * step;
+    result.labels.release();
+    return result;
+  }
   result.labels = full_labels(camera_, options_, depth, result, step);
   // Largest first again: the full image's counts may order two planes of nearly equal size
   // the other way.

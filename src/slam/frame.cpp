@@ -107,7 +107,8 @@ DetectedFeatures FrameBuilder::detect(const cv::Mat& gray, const cv::Mat& depth,
   if (use_.planes)
     planes = std::async(std::launch::async, [&] {
       Stopwatch w;
-      out.planes = planes_->extract(depth).planes;
+      // The frame uses the planes, not the pixels' labels.
+      out.planes = planes_->extract(depth, features::PlaneExtractor::Labels::kNone).planes;
       out.plane_ms = w.elapsed_ms();
     });
   Stopwatch watch;

@@ -442,6 +442,37 @@ TEST(PlaneExtractor, OtherCellSizes) {
   }
 }
 
+TEST(PlaneExtractor, WithoutLabelsTheSamePlanes) {
+  // The frame asks for the planes only: the same planes, without labelling the image (at
+  // pixel_step 2 their sizes are then counted on the samples).
+  for (int step : {1, 2}) {
+    SCOPED_TRACE(step);
+    PlaneOptions options;
+    options.pixel_step = step;
+    const PlaneExtractor extractor = make_extractor(options);
+    for (std::size_t i = 0; i < 3; ++i) {
+      const cv::Mat& depth = views()[i].noisy_depth;
+      const PlaneExtraction full = extractor.extract(depth);
+      const PlaneExtraction bare = extractor.extract(depth, PlaneExtractor::Labels::kNone);
+      EXPECT_TRUE(bare.labels.empty());
+      ASSERT_EQ(full.planes.size(), bare.planes.size());
+      for (const PlaneFeature& plane : bare.planes) {
+        // Matched by normal and offset, as planes of nearly equal size may swap places.
+        const auto same = std::find_if(full.planes.begin(), full.planes.end(), [&](const auto& p) {
+          return p.normal == plane.normal && p.d == plane.d && p.centroid == plane.centroid;
+        });
+        ASSERT_NE(same, full.planes.end());
+        EXPECT_EQ(same->hull.size(), plane.hull.size());
+        if (step == 1) {
+          EXPECT_EQ(same->num_pixels, plane.num_pixels);
+        } else {
+          EXPECT_NEAR(plane.num_pixels, same->num_pixels, 0.1 * same->num_pixels);
+        }
+      }
+    }
+  }
+}
+
 TEST(PlaneExtractor, NonContinuousInput) {
   const View& view = views().front();
   cv::Mat padded(view.noisy_depth.rows + 20, view.noisy_depth.cols + 30, CV_32FC1, cv::Scalar(0.0));
