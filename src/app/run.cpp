@@ -751,9 +751,12 @@ nlohmann::json run_sequence(const RunRequest& request) {
   if (request.features)
     apply_feature_list(*request.features, config.options.use.points, config.options.use.lines,
                        config.options.use.planes);
-  // lines.detector auto: a run with a deadline (real time, a live stream) takes the faster FLD.
+  // lines.detector and planes.pixel_step auto: a run with a deadline (real time, a live
+  // stream) takes the faster FLD and planes from every other pixel.
+  const bool deadline = request.realtime || request.live;
   if (config.options.lines.detector == "auto")
-    config.options.lines.detector = request.realtime || request.live ? "fld" : "lsd";
+    config.options.lines.detector = deadline ? "fld" : "lsd";
+  if (config.options.planes.pixel_step == 0) config.options.planes.pixel_step = deadline ? 2 : 1;
   io::ensure_directory(request.output_dir);
   const fs::path out(request.output_dir);
   io::write_file_atomic((out / "config.yaml").string(), slam::to_yaml(config));

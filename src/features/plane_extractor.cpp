@@ -979,8 +979,8 @@ std::vector<Eigen::Vector3d> plane_hull(const Eigen::Vector3d& normal, double d,
 
 std::optional<std::string> PlaneOptions::check() const {
   if (cell_size < 3 || cell_size > 100) return "planes.cell_size must be in [3, 100]";
-  if (pixel_step < 1 || pixel_step > 4) return "planes.pixel_step must be in [1, 4]";
-  if (cell_size / pixel_step < 3)
+  if (pixel_step < 0 || pixel_step > 4) return "planes.pixel_step must be in [0, 4] (0: auto)";
+  if (cell_size / std::max(1, pixel_step) < 3)
     return "planes.cell_size / planes.pixel_step must be at least 3 (pixels of a cell's side)";
   if (!std::isfinite(cell_tolerance) || cell_tolerance <= 0.0 || cell_tolerance > 1.0)
     return "planes.cell_tolerance must be in (0, 1] metres";
@@ -1088,7 +1088,8 @@ PlaneExtraction PlaneExtractor::extract(const cv::Mat& depth, Labels labels) con
     return result;
   }
   std::lock_guard<std::mutex> lock(workspace_->mutex);
-  const int step = options_.pixel_step;
+  // Auto (0) where the application did not choose: every pixel.
+  const int step = std::max(1, options_.pixel_step);
   if (step == 1) {
     PlaneExtraction result = Extraction(camera_, options_, depth, workspace_->buffers).run();
     merge_coplanar(options_, result);

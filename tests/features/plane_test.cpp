@@ -364,7 +364,7 @@ TEST(PlaneOptions, CheckNamesTheBadField) {
          o.cell_size = static_cast<int>(x);
        },
        5},
-      {"pixel_step", [](PlaneOptions& o, double x) { o.pixel_step = static_cast<int>(x); }, 0},
+      {"pixel_step", [](PlaneOptions& o, double x) { o.pixel_step = static_cast<int>(x); }, -1},
       {"pixel_step", [](PlaneOptions& o, double x) { o.pixel_step = static_cast<int>(x); }, 5},
       {"cell_tolerance", [](PlaneOptions& o, double x) { o.cell_tolerance = x; }, 0.0},
       {"cell_tolerance", [](PlaneOptions& o, double x) { o.cell_tolerance = x; }, nan},

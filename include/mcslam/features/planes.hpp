@@ -16,13 +16,16 @@ namespace mcslam::features {
 struct PlaneOptions {
   /// Side of the square cells (pixels of the full image).
   int cell_size = 10;
-  /// Planes are found from every pixel_step-th pixel of every pixel_step-th row (1, the
-  /// default: all pixels); the labels always cover the full image (each pixel checked against
-  /// the planes of the samples around it). At 2 a 10-pixel cell still fits its plane to 25
-  /// points and the extraction takes 3.0 ms a frame on freiburg1_rpy (one core) against 4.0 ms,
-  /// but Bonn crowd part 1 from frame 240 gave 0.0200 m (5 runs, threaded) against 0.0172 m
-  /// at 1, and 0.0228 against 0.0180 m sequential, so it is not the default (docs/crowd.md).
-  int pixel_step = 1;
+  /// Planes are found from every pixel_step-th pixel of every pixel_step-th row (1: all
+  /// pixels). At 2 a 10-pixel cell still fits its plane to 25 points, and the extraction of
+  /// freiburg1_rpy's planes without labels takes 0.68x the time (one core). 0, auto (the
+  /// default): 1, except in runs with a deadline (`mcslam run --realtime`, the ROS node), where
+  /// the application picks 2. Offline, Bonn crowd part 1 from frame 240 gave 0.0200 m (5 runs,
+  /// threaded) against 0.0172 m at 1, and 0.0228 against 0.0180 m sequential (third stop); in
+  /// real time on 2 cores, part 1 with yolov8n_320, 4 runs each interleaved, the frame's median
+  /// fell from 33.5 to 30.1 ms, 90.8 % of the frames were processed against 87.3 % (medians),
+  /// ATE 0.0133 against 0.0127 m (docs/crowd.md).
+  int pixel_step = 0;
   /// A cell is planar when the RMS distance of its points to their plane is below
   /// max(cell_tolerance, cell_tolerance_per_metre * z^2) metres (depth noise grows with z^2).
   double cell_tolerance = 0.004;
