@@ -3,7 +3,6 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
-#include <cstring>
 #include <limits>
 #include <numbers>
 #include <opencv2/core.hpp>
@@ -387,7 +386,7 @@ std::vector<LineFeature> LineExtractor::extract(const cv::Mat& gray) const {
   }
 
   // LBD on the detection image, where the segments were found (so its 9 bands of 7 pixels are
-  // detection-image pixels, 63 across: about 16 cm at 1 m in freiburg1's camera at 0.4), from
+  // detection-image pixels, 63 across: about 30 cm at 1 m in freiburg1's camera at 0.4), from
   // one gradient image (line_band_descriptor.hpp). The direction start -> end is the detector's:
   // LSD and FLD orient a segment by its gradient's polarity, so the descriptor (which depends on
   // it) is comparable between views.

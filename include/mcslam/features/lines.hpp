@@ -14,7 +14,8 @@
 
 namespace mcslam::features {
 
-/// LBD descriptor: a 256-bit binary string, compared by Hamming distance like ORB's.
+/// LBD descriptor (mcslam's own, src/features/line_band_descriptor.hpp): a 256-bit binary
+/// string, compared by Hamming distance like ORB's.
 using LineDescriptor = OrbDescriptor;
 
 struct LineOptions {
@@ -23,8 +24,9 @@ struct LineOptions {
   /// straight runs, each then moved onto its intensity step to a fraction of a pixel), or
   /// "auto" (the default): LSD, except in runs with a deadline (`mcslam run --realtime`, the
   /// ROS node), where the application picks FLD. Both run on the image scaled by
-  /// detection_scale. On freiburg1_rpy at 0.4, FLD with LBD takes 4.0 ms a frame on one core
-  /// against 7.9 ms for LSD. Over 13 synthetic scenes (rooms and crowds, sequential) its ATE is
+  /// detection_scale. On freiburg1_rpy at 0.4, FLD with LBD takes 0.45x the time of LSD with LBD
+  /// on one core (4.4 against 9.7 ms on a slow day; 4.0 against 7.9 ms with OpenCV's LBD on a
+  /// fast one). Over 13 synthetic scenes (rooms and crowds, sequential) its ATE is
   /// 1.03x LSD's (median ratio; 0.75-1.73), but it splits some edges LSD finds whole, and the
   /// depth fit of a shorter piece can miss the line tests' bound (1.8 cm off the true edge at
   /// 2.5 m against 1.5 cm), so it is not the offline default. In real time on 2 cores with the

@@ -96,7 +96,7 @@ class PlaneExtractor {
   enum class Labels {
     kFull,  ///< PlaneExtraction::labels covers the depth image
     /// labels stays empty. With pixel_step > 1 this skips labelling every pixel of the full image
-    /// from its samples, a quarter of the extraction's time at 2 (freiburg1_rpy); num_pixels is
+    /// from its samples, about a third of the extraction's time at 2 (freiburg1_rpy); num_pixels is
     /// then the planes' samples times pixel_step^2, and planes of nearly equal size may come in
     /// the other order.
     kNone,
