@@ -71,7 +71,12 @@ std::array<float, 8 * kLbdBands> LineBandDescriber::statistics(const Eigen::Vect
   std::array<float, 8 * kLbdBands> out{};
   const Eigen::Vector2d delta = end - start;
   const double length = delta.norm();
-  if (gx_.empty() || !(length > 0.0) || !start.allFinite() || !end.allFinite()) return out;
+  // A segment longer than kMaxLength is not one of an image (and its samples would not fit an
+  // int count).
+  constexpr double kMaxLength = 1e6;
+  if (gx_.empty() || !(length > 0.0) || !(length < kMaxLength) || !start.allFinite() ||
+      !end.allFinite())
+    return out;
   const Eigen::Vector2d d = delta / length;
   const Eigen::Vector2d n(-d.y(), d.x());
   const int steps = std::max(1, static_cast<int>(std::lround(length)) + 1);
@@ -84,16 +89,16 @@ std::array<float, 8 * kLbdBands> LineBandDescriber::statistics(const Eigen::Vect
   // Row sums: n positive, n negative, d positive, d negative (the negative ones as magnitudes).
   std::array<std::array<float, 4>, kLbdRows> rows{};
   const double centre = 0.5 * (kLbdRows - 1);
-  // Pixel centres are at integer coordinates: the nearest pixel is floor(position + 0.5). The
-  // offset keeps positions positive (samples off the image start at -kLbdRows), so that the
-  // conversion to int, which truncates, is the floor; std::floor would be a library call on the
-  // baseline x86-64 target.
+  // Pixel centres are at integer coordinates: the nearest pixel is floor(position + 0.5). Samples
+  // off the image are skipped before any conversion; on it the offset keeps positions positive,
+  // so that the conversion to int, which truncates, is the floor (std::floor would be a library
+  // call on the baseline x86-64 target).
   constexpr float kOffset = 2.0f * kLbdRows + 0.5f;
   constexpr int kOffsetPixels = 2 * kLbdRows;
   const auto sx = static_cast<float>(step * d.x());
   const auto sy = static_cast<float>(step * d.y());
-  const int cols = gx_.cols;
-  const int height = gx_.rows;
+  const auto x_end = static_cast<float>(kOffsetPixels + gx_.cols);
+  const auto y_end = static_cast<float>(kOffsetPixels + gx_.rows);
   for (int k = 0; k < kLbdRows; ++k) {
     const Eigen::Vector2d origin = start + (k - centre) * n;
     const float x0 = static_cast<float>(origin.x()) + kOffset;
@@ -104,10 +109,9 @@ std::array<float, 8 * kLbdBands> LineBandDescriber::statistics(const Eigen::Vect
     for (int s = 0; s < steps; ++s) {
       const float fx = x0 + static_cast<float>(s) * sx;
       const float fy = y0 + static_cast<float>(s) * sy;
-      if (!(fx >= kOffsetPixels) || !(fy >= kOffsetPixels)) continue;
+      if (!(fx >= kOffsetPixels && fx < x_end && fy >= kOffsetPixels && fy < y_end)) continue;
       const int x = static_cast<int>(fx) - kOffsetPixels;
       const int y = static_cast<int>(fy) - kOffsetPixels;
-      if (x >= cols || y >= height) continue;
       const float gx = gx_.ptr<float>(y)[x];
       const float gy = gy_.ptr<float>(y)[x];
       const float across = gx * nx + gy * ny;

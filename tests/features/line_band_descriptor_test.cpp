@@ -52,6 +52,12 @@ TEST(LineBandDescriber, RefusesImagesItCannotDescribe) {
   EXPECT_TRUE(std::all_of(zero.begin(), zero.end(), [](float v) { return v == 0.0f; }));
   const auto nan = describer.statistics({10, 10}, {std::nan(""), 10});
   EXPECT_TRUE(std::all_of(nan.begin(), nan.end(), [](float v) { return v == 0.0f; }));
+  // Far off the image: every sample skipped (no conversion of a huge coordinate), or no segment
+  // of an image at all.
+  const auto far = describer.statistics({1e12, 1e12}, {1e12 + 50, 1e12});
+  EXPECT_TRUE(std::all_of(far.begin(), far.end(), [](float v) { return v == 0.0f; }));
+  const auto huge = describer.statistics({0, 0}, {1e12, 0});
+  EXPECT_TRUE(std::all_of(huge.begin(), huge.end(), [](float v) { return v == 0.0f; }));
 }
 
 TEST(LineBandDescriber, StatisticsAreNormalisedAndClipped) {
