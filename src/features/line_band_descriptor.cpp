@@ -66,9 +66,9 @@ bool LineBandDescriber::set_image(const cv::Mat& gray) {
   return true;
 }
 
-std::array<float, 8 * kLbdBands> LineBandDescriber::statistics(const Eigen::Vector2d& start,
-                                                               const Eigen::Vector2d& end) const {
-  std::array<float, 8 * kLbdBands> out{};
+LineBandDescriber::RowSums LineBandDescriber::row_sums(const Eigen::Vector2d& start,
+                                                       const Eigen::Vector2d& end) const {
+  RowSums rows{};
   const Eigen::Vector2d delta = end - start;
   const double length = delta.norm();
   // A segment longer than kMaxLength is not one of an image (and its samples would not fit an
@@ -76,7 +76,7 @@ std::array<float, 8 * kLbdBands> LineBandDescriber::statistics(const Eigen::Vect
   constexpr double kMaxLength = 1e6;
   if (gx_.empty() || !(length > 0.0) || !(length < kMaxLength) || !start.allFinite() ||
       !end.allFinite())
-    return out;
+    return rows;
   const Eigen::Vector2d d = delta / length;
   const Eigen::Vector2d n(-d.y(), d.x());
   const int steps = std::max(1, static_cast<int>(std::lround(length)) + 1);
@@ -86,8 +86,6 @@ std::array<float, 8 * kLbdBands> LineBandDescriber::statistics(const Eigen::Vect
   const auto nx = static_cast<float>(n.x());
   const auto ny = static_cast<float>(n.y());
 
-  // Row sums: n positive, n negative, d positive, d negative (the negative ones as magnitudes).
-  std::array<std::array<float, 4>, kLbdRows> rows{};
   const double centre = 0.5 * (kLbdRows - 1);
   // Pixel centres are at integer coordinates: the nearest pixel is floor(position + 0.5). Samples
   // off the image are skipped before any conversion; on it the offset keeps positions positive,
@@ -127,6 +125,16 @@ std::array<float, 8 * kLbdBands> LineBandDescriber::statistics(const Eigen::Vect
                                          w * (along_abs - along_sum)};
   }
 
+  return rows;
+}
+
+std::array<float, 8 * kLbdBands> LineBandDescriber::statistics(const Eigen::Vector2d& start,
+                                                               const Eigen::Vector2d& end) const {
+  const RowSums rows = row_sums(start, end);
+  // Means and deviations are scaled separately (their magnitudes differ), then clipped and
+  // interleaved band by band, and the whole scaled again.
+  std::array<float, 4 * kLbdBands> means{};
+  std::array<float, 4 * kLbdBands> deviations{};
   for (int j = 0; j < kLbdBands; ++j) {
     const int first = std::max(0, (j - 1) * kLbdBandWidth);
     const int last = std::min(kLbdRows, (j + 2) * kLbdBandWidth);
@@ -144,29 +152,17 @@ std::array<float, 8 * kLbdBands> LineBandDescriber::statistics(const Eigen::Vect
     for (std::size_t c = 0; c < 4; ++c) {
       const double mean = sum[c] / count;
       const double variance = std::max(0.0, sum2[c] / count - mean * mean);
-      out[static_cast<std::size_t>(8 * j) + c] = static_cast<float>(mean);
-      out[static_cast<std::size_t>(8 * j) + 4 + c] = static_cast<float>(std::sqrt(variance));
+      means[static_cast<std::size_t>(4 * j) + c] = static_cast<float>(mean);
+      deviations[static_cast<std::size_t>(4 * j) + c] = static_cast<float>(std::sqrt(variance));
     }
   }
-
-  // Means and deviations are scaled separately (their magnitudes differ), then clipped and the
-  // whole scaled again.
-  std::array<float, 4 * kLbdBands> means{};
-  std::array<float, 4 * kLbdBands> deviations{};
-  for (int j = 0; j < kLbdBands; ++j)
-    for (int c = 0; c < 4; ++c) {
-      means[static_cast<std::size_t>(4 * j + c)] = out[static_cast<std::size_t>(8 * j + c)];
-      deviations[static_cast<std::size_t>(4 * j + c)] =
-          out[static_cast<std::size_t>(8 * j + 4 + c)];
-    }
   normalise(means.data(), static_cast<int>(means.size()));
   normalise(deviations.data(), static_cast<int>(deviations.size()));
-  for (int j = 0; j < kLbdBands; ++j)
-    for (int c = 0; c < 4; ++c) {
-      out[static_cast<std::size_t>(8 * j + c)] =
-          std::min(kClip, means[static_cast<std::size_t>(4 * j + c)]);
-      out[static_cast<std::size_t>(8 * j + 4 + c)] =
-          std::min(kClip, deviations[static_cast<std::size_t>(4 * j + c)]);
+  std::array<float, 8 * kLbdBands> out{};
+  for (std::size_t j = 0; j < kLbdBands; ++j)
+    for (std::size_t c = 0; c < 4; ++c) {
+      out[8 * j + c] = std::min(kClip, means[4 * j + c]);
+      out[8 * j + 4 + c] = std::min(kClip, deviations[4 * j + c]);
     }
   normalise(out.data(), static_cast<int>(out.size()));
   return out;

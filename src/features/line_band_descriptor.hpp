@@ -53,6 +53,12 @@ class LineBandDescriber {
                                               const Eigen::Vector2d& end) const;
 
  private:
+  /// Per row of the support region: the weighted sums of the gradient's positive and negative
+  /// parts across the segment, then along it (the negative parts as magnitudes). All zero for a
+  /// segment that is degenerate, not finite or longer than any image.
+  using RowSums = std::array<std::array<float, 4>, kLbdRows>;
+  RowSums row_sums(const Eigen::Vector2d& start, const Eigen::Vector2d& end) const;
+
   cv::Mat gx_;
   cv::Mat gy_;
   std::array<float, kLbdRows> row_weight_{};
