@@ -136,7 +136,7 @@ TEST(System, NewPointsTakeTheirColourFromTheUndistortedImage) {
 // while frames are processed: ThreadSanitizer checks it (the readers copy the frame records
 // under their own lock).
 TEST(System, TrajectoryMayBeReadFromAnotherThreadWhileFramesAreProcessed) {
-  const auto& seq = test::rendered_sequence(150, false);
+  const auto& seq = test::rendered_sequence(60, false);
   SystemOptions options;
   options.sequential = false;
   System system(seq.camera, options);
@@ -168,7 +168,7 @@ TEST(System, TrajectoryMayBeReadFromAnotherThreadWhileFramesAreProcessed) {
 }
 
 TEST(System, SequentialModeIsDeterministic) {
-  const auto& seq = test::rendered_sequence(150, false);
+  const auto& seq = test::rendered_sequence(60, false);
   const RunResult a = run(seq, sequential_options(), 0, 60);
   const RunResult b = run(seq, sequential_options(), 0, 60);
   ASSERT_EQ(a.trajectory.size(), b.trajectory.size());
@@ -358,10 +358,9 @@ TEST(System, RelocalisesWithAPersonBoxOverMostOfTheView) {
 TEST(System, RejectsInvalidCameraAndOptions) {
   PinholeCamera bad;
   EXPECT_THROW(System(bad, SystemOptions{}), InputError);
-  const auto& seq = test::rendered_sequence(150, false);
   SystemOptions options;
   options.orb.num_levels = 0;
-  EXPECT_THROW(System(seq.camera, options), InputError);
+  EXPECT_THROW(System(synth::SynthOptions{}.camera(), options), InputError);
 }
 
 }  // namespace
