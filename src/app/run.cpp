@@ -757,6 +757,10 @@ nlohmann::json run_sequence(const RunRequest& request) {
   if (config.options.lines.detector == "auto")
     config.options.lines.detector = deadline ? "fld" : "lsd";
   if (config.options.planes.pixel_step == 0) config.options.planes.pixel_step = deadline ? 2 : 1;
+  // system.extract_ahead auto: on where a frame the loop cannot take is lost (real time; a live
+  // stream prepares its frames on the loop's thread, so there is nothing to overlap).
+  if (config.options.extract_ahead == "auto")
+    config.options.extract_ahead = request.realtime ? "true" : "false";
   io::ensure_directory(request.output_dir);
   const fs::path out(request.output_dir);
   io::write_file_atomic((out / "config.yaml").string(), slam::to_yaml(config));

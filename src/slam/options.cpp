@@ -79,6 +79,8 @@ std::optional<std::string> MapperOptions::check() const {
 std::optional<std::string> SystemOptions::check() const {
   if (!use.points && !use.lines && !use.planes)
     return "features.points, features.lines and features.planes are all off";
+  if (extract_ahead != "auto" && extract_ahead != "true" && extract_ahead != "false")
+    return "system.extract_ahead must be auto, true or false (not '" + extract_ahead + "')";
   if (detection_interval < 1 || detection_interval > 30)
     return "system.detection_interval must be in [1, 30] (frames)";
   if (background_niceness < 0 || background_niceness > 19)

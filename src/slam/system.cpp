@@ -23,7 +23,7 @@ System::System(const PinholeCamera& camera, const SystemOptions& options,
   if (options_.localize) options_.place.loop.enabled = false;
   undistorter_ = std::make_shared<const io::Undistorter>(camera_);
   builder_ = std::make_unique<FrameBuilder>(camera_, options_);
-  if (options_.extract_ahead && !builder_->needs_moving_mask())
+  if (options_.extract_ahead == "true" && !builder_->needs_moving_mask())
     ahead_builder_ = std::make_unique<FrameBuilder>(camera_, options_);
   map_ = from_map ? std::move(initial_map) : std::make_unique<map::Map>();
   if (!options_.place.vocabulary.empty())

@@ -274,11 +274,14 @@ TEST(CliRun, RealTimeRunAccountsForEveryFrame) {
   EXPECT_TRUE(has_line(lines_of(main_run().out / "config.yaml"), "detector: lsd"));
   EXPECT_TRUE(has_line(lines_of(out / "config.yaml"), "pixel_step: 2"));
   EXPECT_TRUE(has_line(lines_of(main_run().out / "config.yaml"), "pixel_step: 1"));
-  // The frame's own thread extracts (system.extract_ahead off, the default) and waits for its
-  // lines and planes; with extract_ahead the reader extracts while the loop tracks the frame
-  // before, and the loop only finishes the features, in real time as without it.
-  EXPECT_TRUE(summary["stages"].contains("extract_wait"));
-  EXPECT_TRUE(has_line(lines_of(out / "config.yaml"), "extract_ahead: false"));
+  // system.extract_ahead auto: in real time the reader extracts while the loop tracks the frame
+  // before, and the loop only finishes the features; offline the frame's own thread extracts
+  // and waits for its lines and planes. Set to true, the reader extracts offline too.
+  EXPECT_FALSE(summary["stages"].contains("extract_wait")) << summary["stages"].dump(1);
+  EXPECT_TRUE(summary["stages"].contains("feature_finish")) << summary["stages"].dump(1);
+  EXPECT_TRUE(has_line(lines_of(out / "config.yaml"), "extract_ahead: true"));
+  EXPECT_TRUE(has_line(lines_of(main_run().out / "config.yaml"), "extract_ahead: false"));
+  EXPECT_TRUE(read_json(main_run().out / "summary.json")["stages"].contains("extract_wait"));
   write_file(root() / "ahead.yaml", "system:\n  extract_ahead: true\n");
   for (const char* mode : {"", " --realtime"}) {
     const fs::path ahead_out = root() / (std::string("out_ahead") + (*mode ? "_rt" : ""));

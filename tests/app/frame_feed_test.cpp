@@ -5,7 +5,10 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <chrono>
+#include <condition_variable>
+#include <mutex>
 #include <thread>
 
 #include "mcslam/core/error.hpp"
@@ -167,6 +170,48 @@ TEST(FrameFeed, FinisherWorksOnEachFrameOnceItIsDue) {
     EXPECT_GE(std::chrono::duration<double>(started[k] - started[0]).count(),
               0.03 * static_cast<double>(k) - 0.005)
         << "frame " << k << " started early";
+}
+
+TEST(FrameFeed, TheNextFrameLoadsWhileTheFinisherWorks) {
+  // With a finisher, frame k + 1 is loaded (on a helper thread) while frame k is finished, so
+  // that the reader spends the longer of the two on a frame, not their sum: here each finisher
+  // waits until the next frame's load has begun, which never happens when the two run in turn.
+  constexpr std::size_t kFrames = 6;
+  std::mutex mutex;
+  std::condition_variable loaded;
+  std::size_t loads_begun = 0;
+  FrameFeed::Loader load = [&](std::size_t k) {
+    {
+      std::lock_guard<std::mutex> lock(mutex);
+      loads_begun = std::max(loads_begun, k + 1);
+    }
+    loaded.notify_all();
+    slam::PreparedImages images;
+    images.prepare_ms = static_cast<double>(k);
+    return images;
+  };
+  std::vector<bool> overlapped;  // written on the reader's thread, read after join
+  FrameFeed::Finisher finish = [&](slam::PreparedImages& images) {
+    const auto k = static_cast<std::size_t>(images.prepare_ms);
+    std::unique_lock<std::mutex> lock(mutex);
+    overlapped.push_back(loaded.wait_for(lock, std::chrono::seconds(5),
+                                         [&] { return loads_begun >= std::min(k + 2, kFrames); }));
+  };
+  for (const bool realtime : {false, true}) {
+    overlapped.clear();
+    loads_begun = 0;
+    std::size_t count = 0;
+    {
+      FrameFeed feed(load, stamps(kFrames, 0.03), FeedOptions{realtime, 2}, finish);
+      while (feed.next()) ++count;
+    }
+    if (!realtime) {
+      EXPECT_EQ(count, kFrames);  // (in real time a late reader may drop some)
+    }
+    for (std::size_t k = 0; k < overlapped.size(); ++k)
+      EXPECT_TRUE(overlapped[k]) << (realtime ? "real time" : "in order") << ", frame " << k;
+    EXPECT_GE(overlapped.size(), realtime ? 1u : kFrames);
+  }
 }
 
 TEST(FrameFeed, StopsCleanlyWhenLeftEarly) {

@@ -119,7 +119,8 @@ TEST(Config, UnknownKeysAndBadValuesAreErrorsNamingTheFile) {
            {"tracker: {established_age: -1}\n", "tracker.established_age"},
            {"tracker: {established_gate: 0.5}\n", "tracker.established_gate"},
            {"tracker: {recovery_window: -0.5}\n", "tracker.recovery_window"},
-           {"tracker: {recovery_window: x}\n", "tracker.recovery_window"}}) {
+           {"tracker: {recovery_window: x}\n", "tracker.recovery_window"},
+           {"system: {extract_ahead: maybe}\n", "system.extract_ahead"}}) {
     SystemOptions fresh;
     io::ConfigFile bad = io::ConfigFile::from_string(text, "tracker.yaml");
     const std::string m = message_of([&] { apply_config(bad, good, fresh); });
@@ -130,6 +131,15 @@ TEST(Config, UnknownKeysAndBadValuesAreErrorsNamingTheFile) {
       io::ConfigFile::from_string("system: {detector_scale: 0}\n", "own.yaml");
   apply_config(own_size, good, own);
   EXPECT_EQ(own.detector_scale, 0.0);
+  // system.extract_ahead: auto (the default), or true or false as YAML writes them.
+  EXPECT_EQ(own.extract_ahead, "auto");
+  for (const char* value : {"true", "false"}) {
+    SystemOptions set;
+    io::ConfigFile ahead = io::ConfigFile::from_string(
+        std::string("system: {extract_ahead: ") + value + "}\n", "ahead.yaml");
+    apply_config(ahead, good, set);
+    EXPECT_EQ(set.extract_ahead, value);
+  }
 }
 
 TEST(Config, CameraFromFolderNameCameraYamlAndSettings) {

@@ -188,7 +188,7 @@ TEST(System, FeaturesExtractedAheadOnAnotherThreadGiveTheSameTrajectory) {
   const auto& seq = test::rendered_sequence(static_cast<int>(kFrames), false);
   const RunResult plain = run(seq, sequential_options(), 0, static_cast<int>(kFrames));
   SystemOptions options = sequential_options();
-  options.extract_ahead = true;
+  options.extract_ahead = "true";
   System system(seq.camera, options);
   ASSERT_TRUE(system.can_extract_ahead());
   const auto prepared = [&](std::size_t i) {
@@ -218,8 +218,8 @@ TEST(System, FeaturesExtractedAheadOnAnotherThreadGiveTheSameTrajectory) {
     EXPECT_EQ((ahead[i].T_w_c.translation() - plain.trajectory[i].T_w_c.translation()).norm(), 0.0)
         << i;
 
-  // Off (the default), or with points limited where the frame before saw movers (they depend on
-  // that frame): no extraction ahead.
+  // Auto (the default; off for System itself), or with points limited where the frame before saw
+  // movers (they depend on that frame): no extraction ahead.
   System plain_system(seq.camera, sequential_options());
   EXPECT_FALSE(plain_system.can_extract_ahead());
   SystemOptions dense = options;

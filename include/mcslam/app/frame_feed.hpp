@@ -79,6 +79,8 @@ class FrameFeed {
     double ready_s = 0.0;
   };
   void read();
+  /// Frame k loaded, or the loader's exception.
+  Slot load_slot(std::size_t k) const;
   double clock_s() const;  // under mutex_
 
   Loader load_;

@@ -222,15 +222,16 @@ struct SystemOptions {
   /// and planes on the reader's thread (with --realtime once the frame is due and the loop has
   /// taken the frame before) while the frame loop still tracks the frame before
   /// (System::extract_features); the loop then only finishes them with the motion. The
-  /// features are the same; the two stages overlap on the two cores. Off by default, because
-  /// the overlap also takes CPU from the other threads (measured on 2 cores, docs/crowd.md):
-  /// offline, freiburg1_rpy runs 1.1-1.4x the frames per second but the mapper keeps up with
-  /// fewer of them (a fifth fewer keyframes, ATE 1.1-1.2x) and a detector model gets fewer
-  /// passes (tracking lost in Bonn crowd's hardest window); in real time on a loaded machine
-  /// 1.1x the frames are processed, with a better ATE, but each stage runs slower beside the
-  /// other and the latency p95 rose from 89 to 122 ms. Never with orb.moving_density > 0,
-  /// whose points depend on the frame before.
-  bool extract_ahead = false;
+  /// features are the same; the two stages overlap on the two cores. "true", "false" or "auto":
+  /// `mcslam run` makes auto true with --realtime and false otherwise; System takes auto as
+  /// false. Offline the overlap takes CPU from the other threads (measured on 2 cores,
+  /// docs/crowd.md): freiburg1_rpy runs 1.1-1.4x the frames per second but the mapper keeps up
+  /// with fewer of them (a fifth fewer keyframes, ATE 1.1-1.2x) and a detector model gets fewer
+  /// passes. In real time, where frames the loop cannot take are lost, Bonn crowd part 1 with
+  /// yolov8n_320 had 95-96 % of its frames processed against 89-93 %, at the same ATE (the
+  /// next frame is loaded while this one is extracted, FrameFeed). Never with
+  /// orb.moving_density > 0, whose points depend on the frame before.
+  std::string extract_ahead = "auto";
   /// A detector model (threaded mode, not waiting for boxes) is given a frame only when at least
   /// this many frames have passed since the last one it was given. Boxes are carried from the
   /// detector's frame to every frame by their features' motion (dynamics.propagate_boxes), so a
