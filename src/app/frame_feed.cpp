@@ -9,9 +9,10 @@ namespace mcslam::app {
 using Clock = std::chrono::steady_clock;
 
 FrameFeed::FrameFeed(Loader load, std::vector<double> timestamps, FeedOptions options,
-                     Finisher finish)
+                     Finisher finish, FinishWanted finish_wanted)
     : load_(std::move(load)),
       finish_(std::move(finish)),
+      finish_wanted_(std::move(finish_wanted)),
       timestamps_(std::move(timestamps)),
       options_(options) {
   options_.lookahead = std::max<std::size_t>(options_.lookahead, 1);
@@ -97,7 +98,8 @@ void FrameFeed::read() {
     } else {
       slot.due_s = clock_s();
     }
-    if (finish_ && !slot.error && options_.realtime) {
+    const bool finishing = finish_ && !slot.error && (!finish_wanted_ || finish_wanted_());
+    if (finishing && options_.realtime) {
       // The finisher's work (the features) waits until the loop has taken the frame before, so
       // that it overlaps the loop's work on that frame and is never spent on a frame that a
       // newer one replaces before the loop comes back: the loop takes the newest frame anyway.
@@ -118,7 +120,7 @@ void FrameFeed::read() {
         continue;
       }
     }
-    if (finish_ && !slot.error) {
+    if (finishing) {
       lock.unlock();
       try {
         finish_(slot.images);

@@ -353,10 +353,16 @@ class FrameInput {
     for (std::size_t k = 0; k < total; ++k) stamps.push_back(plan.frames[k].rgb_timestamp);
     // Threaded runs may extract each frame's features on the feed's thread once the frame is
     // due, while the loop tracks the frame before (SystemOptions::extract_ahead).
+    // While frames wait for their own boxes (the cold start) the loop extracts them itself,
+    // beside the detector, and the feed hands them over as without extraction ahead.
     FrameFeed::Finisher extract;
-    if (!system.options().sequential && system.can_extract_ahead())
+    FrameFeed::FinishWanted extracting;
+    if (!system.options().sequential && system.can_extract_ahead()) {
       extract = [&system](slam::PreparedImages& images) { system.extract_features(images); };
-    feed_.emplace(load, std::move(stamps), FeedOptions{request.realtime, 2}, std::move(extract));
+      extracting = [&system] { return system.extracts_ahead_now(); };
+    }
+    feed_.emplace(load, std::move(stamps), FeedOptions{request.realtime, 2}, std::move(extract),
+                  std::move(extracting));
   }
 
   /// The next frame, nullopt at the end of the stream. image_load (wait_ms) is the time the

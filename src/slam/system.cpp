@@ -66,6 +66,12 @@ System::~System() { stop_threads(); }
 void System::set_detection_source(std::unique_ptr<DetectionSource> source, bool wait) {
   detections_ = std::move(source);
   wait_for_detections_ = wait;
+  next_frame_waits_for_boxes_ = frame_waits_for_boxes();
+}
+
+bool System::frame_waits_for_boxes() const {
+  const bool cold_start = !started_in_map_ && keyframes_made_ < options_.cold_start_keyframes;
+  return detections_ != nullptr && (wait_for_detections_ || options_.sequential || cold_start);
 }
 
 cv::Mat System::undistort(const cv::Mat& rgb) const { return undistorter_->apply_rgb(rgb); }
@@ -130,8 +136,12 @@ PreparedImages System::prepare(const cv::Mat& rgb, const cv::Mat& depth) const {
 
 bool System::can_extract_ahead() const { return ahead_builder_ != nullptr; }
 
+bool System::extracts_ahead_now() const {
+  return can_extract_ahead() && !next_frame_waits_for_boxes_.load();
+}
+
 void System::extract_features(PreparedImages& images) const {
-  if (!ahead_builder_ || !images.problem.empty() || images.features) return;
+  if (!extracts_ahead_now() || !images.problem.empty() || images.features) return;
   images.features =
       std::make_shared<const DetectedFeatures>(ahead_builder_->detect(images.gray, images.depth));
 }
@@ -179,8 +189,7 @@ FrameResult System::process(const PreparedImages& images, double timestamp,
 
   // The detector starts on this image now and runs while the features are extracted. While the
   // first map is built (cold start), the frame waits for its own boxes.
-  const bool cold_start = !started_in_map_ && keyframes_made_ < options_.cold_start_keyframes;
-  const bool wait_for_boxes = wait_for_detections_ || options_.sequential || cold_start;
+  const bool wait_for_boxes = frame_waits_for_boxes();
   if (detections_ && rgb.channels() == 3)
     detections_->submit(result.frame_id, timestamp, rgb, wait_for_boxes);
 
@@ -227,6 +236,7 @@ FrameResult System::process(const PreparedImages& images, double timestamp,
   if (outcome.keyframe) {
     result.keyframe = true;
     ++keyframes_made_;
+    next_frame_waits_for_boxes_ = frame_waits_for_boxes();
     // New points take their colour from the keyframe's image (for the saved map). The mapper
     // undistorts it on its thread; its own copy, as the caller may reuse its buffer.
     if (rgb.channels() == 3) outcome.keyframe->color = rgb.clone();

@@ -214,6 +214,29 @@ TEST(FrameFeed, TheNextFrameLoadsWhileTheFinisherWorks) {
   }
 }
 
+TEST(FrameFeed, AFrameTheFinisherHasNoWorkForIsNotHeldForTheLoop) {
+  // Real time, frames 30 ms apart, a loop that needs 100 ms a frame (as while frames wait for
+  // their own boxes) and a finisher with no work now: each frame is handed over at its time and
+  // the newest wins, so the loop's frame is at most one interval old. Held until the loop had
+  // taken the frame before (as frames with work are), it would be up to a loop's frame old.
+  std::size_t finished = 0;  // written on the reader's thread, read after join
+  FrameFeed::Finisher finish = [&](slam::PreparedImages&) { ++finished; };
+  std::vector<double> ages;
+  {
+    FrameFeed feed(counting_loader(), stamps(15, 0.03), FeedOptions{true, 2}, finish,
+                   [] { return false; });
+    while (auto f = feed.next()) {
+      ages.push_back(feed.now_s() - f->due_s);
+      std::this_thread::sleep_for(milliseconds(100));
+    }
+  }
+  EXPECT_EQ(finished, 0u);
+  ASSERT_GE(ages.size(), 3u);
+  // (The last frame has no successor to replace it while the loop sleeps.)
+  for (std::size_t i = 1; i + 1 < ages.size(); ++i)
+    EXPECT_LT(ages[i], 0.03 + 0.02) << "frame " << i << " of those taken";
+}
+
 TEST(FrameFeed, StopsCleanlyWhenLeftEarly) {
   // A real-time feed of frames 10 s apart destroyed after one frame: the reader wakes from its
   // wait for frame 1 at once and joins (without the wake-up this takes 10 s).

@@ -355,6 +355,41 @@ TEST(System, RelocalisesWithAPersonBoxOverMostOfTheView) {
   EXPECT_NE(r->relocalisation->keyframe, map::kNoId);
 }
 
+// While frames wait for their own boxes (the cold start), extract_features() leaves the
+// extraction to process(), where it overlaps the detector's pass: extracted ahead it would add
+// to the frame's wait. Once the first map is built it extracts ahead again.
+TEST(System, NoExtractionAheadWhileFramesWaitForTheirBoxes) {
+  const auto& seq = test::rendered_sequence(30, false);
+  SystemOptions options;
+  options.sequential = false;
+  options.extract_ahead = "true";
+  options.cold_start_keyframes = 2;
+  System system(seq.camera, options);
+  const auto prepared = [&](std::size_t i) {
+    PreparedImages images = system.prepare(seq.frames[i].rgb, seq.frames[i].depth);
+    system.extract_features(images);
+    return images;
+  };
+  EXPECT_NE(prepared(0).features, nullptr);  // no detection source: nothing to wait for
+  system.set_detection_source(std::make_unique<FixedBoxes>(std::vector<perception::Detection>{}),
+                              false);
+  int keyframes = 0;
+  std::size_t i = 0;
+  for (; i < seq.frames.size() && keyframes < 2; ++i) {
+    const PreparedImages images = prepared(i);
+    EXPECT_EQ(images.features, nullptr) << "frame " << i;
+    const FrameResult r = system.process(images, seq.groundtruth[i].timestamp);
+    EXPECT_EQ(r.state, TrackingState::kOk) << "frame " << i;
+    keyframes += r.keyframe ? 1 : 0;
+  }
+  ASSERT_EQ(keyframes, 2);
+  ASSERT_LT(i, seq.frames.size());
+  const PreparedImages after = prepared(i);
+  EXPECT_NE(after.features, nullptr);
+  EXPECT_EQ(system.process(after, seq.groundtruth[i].timestamp).state, TrackingState::kOk);
+  system.finish();
+}
+
 TEST(System, RejectsInvalidCameraAndOptions) {
   PinholeCamera bad;
   EXPECT_THROW(System(bad, SystemOptions{}), InputError);

@@ -53,10 +53,15 @@ class FrameFeed {
   /// overlaps the loop's tracking of the frame before. On the reader's thread; what it throws,
   /// next() rethrows as the loader's.
   using Finisher = std::function<void(slam::PreparedImages&)>;
+  /// Whether the finisher has work for the frame that is due now (checked then, on the
+  /// reader's thread; it must not call the feed). A frame it has none for is handed over as
+  /// without a finisher: in real time it does not wait for the loop to take the frame before.
+  using FinishWanted = std::function<bool()>;
 
   /// `timestamps`: capture time (s) of each frame, non-decreasing; in real time frame k is due
   /// timestamps[k] - timestamps[0] seconds after the clock starts. Starts the reader thread.
-  FrameFeed(Loader load, std::vector<double> timestamps, FeedOptions options, Finisher finish = {});
+  FrameFeed(Loader load, std::vector<double> timestamps, FeedOptions options, Finisher finish = {},
+            FinishWanted finish_wanted = {});
   /// Stops the reader (between two frames) and joins it.
   ~FrameFeed();
   FrameFeed(const FrameFeed&) = delete;
@@ -85,6 +90,7 @@ class FrameFeed {
 
   Loader load_;
   Finisher finish_;
+  FinishWanted finish_wanted_;
   std::vector<double> timestamps_;
   FeedOptions options_;
   mutable std::mutex mutex_;

@@ -140,13 +140,18 @@ class System {
   /// only finishes them with the camera's motion: a run calls it on its reader's thread, and the
   /// next frame's extraction overlaps the tracking of the frame before. It has its own
   /// extractors: one thread at a time may call it, alongside process(). Does nothing (process()
-  /// then extracts) when images.problem is set, when options.extract_ahead is off, or when the
-  /// points depend on the frame before (orb.moving_density > 0). Stage times: orb_extract,
+  /// then extracts) when images.problem is set, when options.extract_ahead is off, when the
+  /// points depend on the frame before (orb.moving_density > 0), or while frames wait for
+  /// their own boxes (the cold start): process() then extracts while the detector runs, where
+  /// extracting ahead would add the extraction to the wait. Stage times: orb_extract,
   /// line_extract and plane_extract, listed by process() as concurrent (the frame did not wait
   /// for them).
   void extract_features(PreparedImages& images) const;
   /// False when extract_features() does nothing (extract_ahead off, or orb.moving_density > 0).
   bool can_extract_ahead() const;
+  /// Whether extract_features() would extract the next frame now: can_extract_ahead(), and the
+  /// frame will not wait for its own boxes. Any thread.
+  bool extracts_ahead_now() const;
 
   /// Boxes for every later frame come from `source` (a model on its own thread, or a file);
   /// without one the system runs on geometry alone. With `wait`, each frame waits for its own
@@ -216,6 +221,12 @@ class System {
   std::unique_ptr<DetectionSource> detections_;
   std::unique_ptr<ReadoutEstimator> readout_;  // with camera.readout_auto
   bool wait_for_detections_ = true;
+  /// Whether the next frame will wait for its own boxes (process() publishes it for
+  /// extract_features() on the reader's thread).
+  std::atomic<bool> next_frame_waits_for_boxes_{false};
+  /// Whether the next frame waits for its own boxes: a detection source, and waiting always
+  /// (--wait-detections, sequential) or while the first map is built (cold start).
+  bool frame_waits_for_boxes() const;
   mutable std::mutex records_mutex_;  // process() appends; the trajectory readers copy
   std::vector<FrameRecord> records_;
   std::atomic<int> pose_failures_{0};  // the tracker's count, published after each frame
