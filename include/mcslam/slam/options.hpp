@@ -227,10 +227,10 @@ struct SystemOptions {
   /// false. Offline the overlap takes CPU from the other threads (measured on 2 cores,
   /// docs/crowd.md): freiburg1_rpy runs 1.1-1.4x the frames per second but the mapper keeps up
   /// with fewer of them (a fifth fewer keyframes, ATE 1.1-1.2x) and a detector model gets fewer
-  /// passes. In real time, where frames the loop cannot take are lost, Bonn crowd part 1 with
-  /// yolov8n_320 had 95-96 % of its frames processed against 89-93 %, at the same ATE (the
-  /// next frame is loaded while this one is extracted, FrameFeed). Never with
-  /// orb.moving_density > 0, whose points depend on the frame before.
+  /// passes. In real time, where a frame the loop cannot take is lost, Bonn crowd part 1 with
+  /// yolov8n_320 had 96-98 % of its frames processed against 90-94 %, latency p95 76-93 ms
+  /// against 71-78, ATE 1.07x. Not while frames wait for their own boxes (the cold start);
+  /// never with orb.moving_density > 0, whose points depend on the frame before.
   std::string extract_ahead = "auto";
   /// A detector model (threaded mode, not waiting for boxes) is given a frame only when at least
   /// this many frames have passed since the last one it was given. Boxes are carried from the
