@@ -352,9 +352,9 @@ class FrameInput {
     stamps.reserve(total);
     for (std::size_t k = 0; k < total; ++k) stamps.push_back(plan.frames[k].rgb_timestamp);
     // Threaded runs may extract each frame's features on the feed's thread once the frame is
-    // due, while the loop tracks the frame before (SystemOptions::extract_ahead).
-    // While frames wait for their own boxes (the cold start) the loop extracts them itself,
-    // beside the detector, and the feed hands them over as without extraction ahead.
+    // due, while the loop tracks the frame before (SystemOptions::extract_ahead); not while
+    // frames wait for their own boxes (the cold start), when the loop extracts them beside the
+    // detector and the feed hands them over as without extraction ahead.
     FrameFeed::Finisher extract;
     FrameFeed::FinishWanted extracting;
     if (!system.options().sequential && system.can_extract_ahead()) {

@@ -9,7 +9,8 @@
 // the newest available frame; one that a newer frame replaces before the loop took it is
 // dropped, as a camera driver drops what a slow consumer misses. The clock starts when the first
 // frame is ready. Work that needs the frame to exist (feature extraction) runs on the reader's
-// thread too, once the frame is due, and counts in its latency.
+// thread too, once the frame is due, and counts in its latency; meanwhile the frame after is
+// loaded on a helper thread.
 
 #include <chrono>
 #include <condition_variable>
