@@ -6,8 +6,6 @@
 
 namespace mcslam::app {
 
-using Clock = std::chrono::steady_clock;
-
 FrameFeed::FrameFeed(Loader load, std::vector<double> timestamps, FeedOptions options,
                      Finisher finish, FinishWanted finish_wanted)
     : load_(std::move(load)),
@@ -54,6 +52,53 @@ FrameFeed::Slot FrameFeed::load_slot(std::size_t k) const {
   return slot;
 }
 
+std::optional<std::size_t> FrameFeed::next_to_read(std::unique_lock<std::mutex>& lock,
+                                                   std::size_t k) {
+  // In order, keep at most `lookahead` frames ready; in real time never wait for the loop.
+  if (!options_.realtime)
+    changed_.wait(lock, [&] { return stop_ || ready_.size() < options_.lookahead; });
+  if (stop_) return std::nullopt;
+  // A camera never falls behind its clock: when the reader itself is late (its thread got too
+  // little CPU), frames whose successor is already due are dropped unread, so that the loop gets
+  // the newest frame and not a backlog.
+  if (options_.realtime && start_) {
+    const double now = clock_s();
+    while (k + 1 < timestamps_.size() && timestamps_[k + 1] - timestamps_.front() <= now) {
+      dropped_.push_back(k);
+      ++k;
+    }
+  }
+  return k;
+}
+
+FrameFeed::Clock::time_point FrameFeed::due_at(std::size_t k) const {
+  return *start_ + std::chrono::duration_cast<Clock::duration>(
+                       std::chrono::duration<double>(timestamps_[k] - timestamps_.front()));
+}
+
+bool FrameFeed::wait_for_loop(std::unique_lock<std::mutex>& lock, std::size_t k) {
+  // The finisher's work (the features) waits until the loop has taken the frame before, so that
+  // it overlaps the loop's work on that frame and is never spent on a frame that a newer one
+  // replaces before the loop comes back: the loop takes the newest frame anyway.
+  const auto loop_free = [&] { return stop_ || ready_.empty(); };
+  if (k + 1 == timestamps_.size()) {
+    changed_.wait(lock, loop_free);
+    return true;
+  }
+  return changed_.wait_until(lock, due_at(k + 1), loop_free);
+}
+
+void FrameFeed::publish(Slot slot) {
+  // Newest wins: a frame the loop has not taken yet is dropped (never an error, which ends the
+  // feed and must reach the loop).
+  if (options_.realtime)
+    while (!ready_.empty() && !ready_.back().error) {
+      dropped_.push_back(ready_.back().index);
+      ready_.pop_back();
+    }
+  ready_.push_back(std::move(slot));
+}
+
 void FrameFeed::read() {
   // With a finisher, the frame after this one is loaded on a helper thread while this one waits
   // for its time and is finished, as a camera's driver decodes the next image while the consumer
@@ -61,24 +106,13 @@ void FrameFeed::read() {
   // (measured in docs/crowd.md). Without one, loading is all the reader does.
   std::future<Slot> next_load;
   for (std::size_t k = 0; k < timestamps_.size(); ++k) {
-    Slot slot;
     {
       std::unique_lock<std::mutex> lock(mutex_);
-      // In order, keep at most `lookahead` frames ready; in real time never wait for the loop.
-      if (!options_.realtime)
-        changed_.wait(lock, [&] { return stop_ || ready_.size() < options_.lookahead; });
-      if (stop_) break;
-      // A camera never falls behind its clock: when the reader itself is late (its thread got
-      // too little CPU), frames whose successor is already due are dropped unread, so that the
-      // loop gets the newest frame and not a backlog.
-      if (options_.realtime && start_) {
-        const double now = clock_s();
-        while (k + 1 < timestamps_.size() && timestamps_[k + 1] - timestamps_.front() <= now) {
-          dropped_.push_back(k);
-          ++k;
-        }
-      }
+      const std::optional<std::size_t> next = next_to_read(lock, k);
+      if (!next) break;
+      k = *next;
     }
+    Slot slot;
     if (next_load.valid()) {
       slot = next_load.get();                    // frame k + 1 of the iteration before
       if (slot.index != k) slot = load_slot(k);  // the reader was late and skipped it
@@ -91,29 +125,16 @@ void FrameFeed::read() {
     if (!start_) start_ = Clock::now();  // the camera starts with its first frame
     if (options_.realtime && !slot.error) {
       slot.due_s = timestamps_[k] - timestamps_.front();
-      const auto due = *start_ + std::chrono::duration_cast<Clock::duration>(
-                                     std::chrono::duration<double>(slot.due_s));
-      changed_.wait_until(lock, due, [&] { return stop_; });
+      changed_.wait_until(lock, due_at(k), [&] { return stop_; });
       if (stop_) break;
     } else {
       slot.due_s = clock_s();
     }
     const bool finishing = finish_ && !slot.error && (!finish_wanted_ || finish_wanted_());
     if (finishing && options_.realtime) {
-      // The finisher's work (the features) waits until the loop has taken the frame before, so
-      // that it overlaps the loop's work on that frame and is never spent on a frame that a
-      // newer one replaces before the loop comes back: the loop takes the newest frame anyway.
-      // A frame whose successor comes due meanwhile is dropped unfinished.
-      const auto loop_free = [&] { return stop_ || ready_.empty(); };
-      bool superseded = false;
-      if (k + 1 < timestamps_.size()) {
-        const auto next_due =
-            *start_ + std::chrono::duration_cast<Clock::duration>(
-                          std::chrono::duration<double>(timestamps_[k + 1] - timestamps_.front()));
-        superseded = !changed_.wait_until(lock, next_due, loop_free);
-      } else {
-        changed_.wait(lock, loop_free);
-      }
+      // A frame whose successor comes due before the loop took the one before is dropped
+      // unfinished.
+      const bool superseded = !wait_for_loop(lock, k);
       if (stop_) break;
       if (superseded) {
         dropped_.push_back(k);
@@ -132,14 +153,7 @@ void FrameFeed::read() {
     }
     slot.ready_s = std::max(clock_s(), slot.due_s);
     const bool error = slot.error != nullptr;
-    // Newest wins: a frame the loop has not taken yet is dropped (never an error, which ends
-    // the feed and must reach the loop).
-    if (options_.realtime)
-      while (!ready_.empty() && !ready_.back().error) {
-        dropped_.push_back(ready_.back().index);
-        ready_.pop_back();
-      }
-    ready_.push_back(std::move(slot));
+    publish(std::move(slot));
     lock.unlock();
     changed_.notify_all();
     if (error) break;

@@ -84,9 +84,22 @@ class FrameFeed {
     double due_s = 0.0;
     double ready_s = 0.0;
   };
+  using Clock = std::chrono::steady_clock;
+
   void read();
   /// Frame k loaded, or the loader's exception.
   Slot load_slot(std::size_t k) const;
+  /// Under the lock: the frame to read from k on (in order once fewer than `lookahead` frames
+  /// are ready; in real time past those whose successor is already due, which are dropped), or
+  /// nullopt when the feed stops.
+  std::optional<std::size_t> next_to_read(std::unique_lock<std::mutex>& lock, std::size_t k);
+  /// When frame k is due on the feed's clock (which has started).
+  Clock::time_point due_at(std::size_t k) const;
+  /// Under the lock, real time: waits until the loop has taken every ready frame; false when
+  /// frame k + 1 comes due first. Returns at once when the feed stops.
+  bool wait_for_loop(std::unique_lock<std::mutex>& lock, std::size_t k);
+  /// Under the lock: the slot to the loop (in real time it replaces a frame not taken yet).
+  void publish(Slot slot);
   double clock_s() const;  // under mutex_
 
   Loader load_;
