@@ -228,9 +228,9 @@ struct SystemOptions {
   /// docs/crowd.md): freiburg1_rpy runs 1.1-1.4x the frames per second but the mapper keeps up
   /// with fewer of them (a fifth fewer keyframes, ATE 1.1-1.2x) and a detector model gets fewer
   /// passes. In real time, where a frame the loop cannot take is lost, Bonn crowd part 1 with
-  /// yolov8n_320 had 96-98 % of its frames processed against 90-94 %, latency p95 76-93 ms
-  /// against 71-78, ATE 1.07x. Not while frames wait for their own boxes (the cold start);
-  /// never with orb.moving_density > 0, whose points depend on the frame before.
+  /// yolov8n_320 had 96-99 % of its frames processed against 90-94 %, latency p95 under 100 ms
+  /// in every run (61-97 ms), ATE 1.07x. Not while frames wait for their own boxes (the cold
+  /// start); never with orb.moving_density > 0, whose points depend on the frame before.
   std::string extract_ahead = "auto";
   /// A detector model (threaded mode, not waiting for boxes) is given a frame only when at least
   /// this many frames have passed since the last one it was given. Boxes are carried from the
