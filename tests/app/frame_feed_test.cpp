@@ -111,7 +111,7 @@ TEST(FrameFeed, RealTimeReaderSlowerThanTheCameraSkipsAheadInsteadOfFallingBehin
     last = f->index;
     ++taken;
   }
-  EXPECT_LT(worst_late_s, 0.15);
+  EXPECT_LT(worst_late_s, 0.3);  // against 0.8 s when read in turn; wide for loaded machines
   EXPECT_EQ(last, 39u) << "the last frame is never dropped";
   EXPECT_GE(feed.dropped().size(), 20u);
   EXPECT_EQ(reported_drops, feed.dropped().size());
@@ -215,26 +215,40 @@ TEST(FrameFeed, TheNextFrameLoadsWhileTheFinisherWorks) {
 }
 
 TEST(FrameFeed, AFrameTheFinisherHasNoWorkForIsNotHeldForTheLoop) {
-  // Real time, frames 30 ms apart, a loop that needs 100 ms a frame (as while frames wait for
+  // Real time, frames 30 ms apart, a loop that needs 300 ms a frame (as while frames wait for
   // their own boxes) and a finisher with no work now: each frame is handed over at its time and
-  // the newest wins, so the loop's frame is at most one interval old. Held until the loop had
-  // taken the frame before (as frames with work are), it would be up to a loop's frame old.
-  std::size_t finished = 0;  // written on the reader's thread, read after join
-  FrameFeed::Finisher finish = [&](slam::PreparedImages&) { ++finished; };
-  std::vector<double> ages;
-  {
-    FrameFeed feed(counting_loader(), stamps(15, 0.03), FeedOptions{true, 2}, finish,
-                   [] { return false; });
+  // the newest wins, so the loop's frame is about one interval old. Held until the loop had
+  // taken the frame before (as frames with work are), it is most of a loop's frame old (270 ms
+  // here), which the second run checks. The bound between the two is half a loop's frame: wide
+  // enough for a reader thread delayed by a loaded machine (91 ms once under ThreadSanitizer
+  // in CI), where a bound of an interval and a bit was not.
+  constexpr double kInterval = 0.03, kLoop = 0.3;
+  const auto ages_of_taken_frames = [&](bool finisher_has_work, std::size_t& finished) {
+    FrameFeed::Finisher finish = [&](slam::PreparedImages&) { ++finished; };
+    std::vector<double> ages;
+    FrameFeed feed(counting_loader(), stamps(40, kInterval), FeedOptions{true, 2}, finish,
+                   [finisher_has_work] { return finisher_has_work; });
     while (auto f = feed.next()) {
       ages.push_back(feed.now_s() - f->due_s);
-      std::this_thread::sleep_for(milliseconds(100));
+      std::this_thread::sleep_for(std::chrono::duration<double>(kLoop));
     }
-  }
+    return ages;
+  };
+  std::size_t finished = 0;  // written on the reader's thread, read after its join
+  const std::vector<double> ages = ages_of_taken_frames(false, finished);
   EXPECT_EQ(finished, 0u);
   ASSERT_GE(ages.size(), 3u);
-  // (The last frame has no successor to replace it while the loop sleeps.)
+  // (The first frame is taken at once, and the last has no successor to replace it while the
+  // loop sleeps.)
   for (std::size_t i = 1; i + 1 < ages.size(); ++i)
-    EXPECT_LT(ages[i], 0.03 + 0.02) << "frame " << i << " of those taken";
+    EXPECT_LT(ages[i], kLoop / 2) << "frame " << i << " of those taken";
+
+  std::size_t finished_held = 0;
+  const std::vector<double> held = ages_of_taken_frames(true, finished_held);
+  EXPECT_EQ(finished_held, held.size());
+  ASSERT_GE(held.size(), 3u);
+  for (std::size_t i = 1; i + 1 < held.size(); ++i)
+    EXPECT_GT(held[i], kLoop / 2) << "frame " << i << " of those held";
 }
 
 TEST(FrameFeed, StopsCleanlyWhenLeftEarly) {
