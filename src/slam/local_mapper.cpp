@@ -202,8 +202,14 @@ void LocalMapper::wait_idle() {
 }
 
 void LocalMapper::insert_keyframe(const KeyFrameRequest& request) {
-  // The keyframe and its bag of words are made before the write lock, which every frame of the
-  // tracker waits for: they only read the map, which the mapper alone writes.
+  auto lock = map_.write_lock();
+  for (const auto& s : request.statistics)
+    map_.add_tracking_statistics(s.landmark, s.visible, s.found);
+  for (const auto& s : request.line_statistics)
+    map_.add_line_statistics(s.landmark, s.visible, s.found);
+  // Points tracking saw move (a person the detector missed) leave the map.
+  for (map::PointId p : request.moved_points)
+    if (map_.point(p) != nullptr) map_.erase_point(p);
   map::KeyFrame kf;
   kf.id = request.id;
   kf.frame_id = request.frame.id;
@@ -217,14 +223,6 @@ void LocalMapper::insert_keyframe(const KeyFrameRequest& request) {
   kf.excluded_points = request.excluded_points;
   kf.excluded_lines = request.excluded_lines;
   if (vocabulary_) kf.bow = bag_of_words(kf);
-  auto lock = map_.write_lock();
-  for (const auto& s : request.statistics)
-    map_.add_tracking_statistics(s.landmark, s.visible, s.found);
-  for (const auto& s : request.line_statistics)
-    map_.add_line_statistics(s.landmark, s.visible, s.found);
-  // Points tracking saw move (a person the detector missed) leave the map.
-  for (map::PointId p : request.moved_points)
-    if (map_.point(p) != nullptr) map_.erase_point(p);
   const map::KeyFrameId id = map_.add_keyframe(std::move(kf));
   for (std::size_t i = 0; i < request.landmarks.size(); ++i) {
     // A landmark fused into another since the request was made: the association goes to the
