@@ -26,7 +26,7 @@ double centre_error(const SE3& T_c_w, const SE3& W_truth_est, const test::Render
 // world against poses in the new one, every static feature would look as if it had moved 25 cm,
 // and the search for movers would take static landmarks out of the map.
 TEST(Tracker, ACorrectionOfTheWholeMapMovesNoStaticLandmarkOut) {
-  const int jump_at = 30, last = 60;
+  const int jump_at = 40, last = 80;
   // Only the frames it tracks: rendering dominates the test's time under the sanitizers.
   const auto& seq = test::rendered_sequence(last, false);
   Pipeline p(seq);

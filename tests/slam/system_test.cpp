@@ -93,12 +93,11 @@ TEST(System, TracksAcrossDroppedFramesWithTheMotionOverTheGap) {
 }
 
 TEST(System, ThreadedMappingTracksToo) {
-  // 100 frames: the test ThreadSanitizer's run waits for longest.
-  const auto& seq = test::rendered_sequence(100, false);
+  const auto& seq = test::rendered_sequence(150, false);
   SystemOptions options;
   options.sequential = false;
   const RunResult r = run(seq, options);
-  EXPECT_EQ(r.tracked, 100);
+  EXPECT_EQ(r.tracked, 150);
   EXPECT_LT(eval::evaluate(seq.groundtruth, r.trajectory).ate.translation.rmse, 0.01);
 }
 
