@@ -757,12 +757,12 @@ nlohmann::json run_sequence(const RunRequest& request) {
   if (request.features)
     apply_feature_list(*request.features, config.options.use.points, config.options.use.lines,
                        config.options.use.planes);
-  // lines.detector and planes.pixel_step auto: a run with a deadline (real time, a live
-  // stream) takes the faster FLD and planes from every other pixel.
+  // lines.detector auto: a run with a deadline (real time, a live stream) takes the faster
+  // FLD. config.yaml holds the effective values of the settings read as auto.
   const bool deadline = request.realtime || request.live;
   if (config.options.lines.detector == "auto")
     config.options.lines.detector = deadline ? "fld" : "lsd";
-  if (config.options.planes.pixel_step == 0) config.options.planes.pixel_step = deadline ? 2 : 1;
+  config.options.planes.pixel_step = config.options.planes.effective_pixel_step();
   // system.extract_ahead auto: on where a frame the loop cannot take is lost (real time; a live
   // stream prepares its frames on the loop's thread, so there is nothing to overlap).
   if (config.options.extract_ahead == "auto")

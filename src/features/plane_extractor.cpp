@@ -977,10 +977,15 @@ std::vector<Eigen::Vector3d> plane_hull(const Eigen::Vector3d& normal, double d,
   return out;
 }
 
+int PlaneOptions::effective_pixel_step() const {
+  if (pixel_step > 0) return pixel_step;
+  return std::clamp(cell_size / 3, 1, 3);
+}
+
 std::optional<std::string> PlaneOptions::check() const {
   if (cell_size < 3 || cell_size > 100) return "planes.cell_size must be in [3, 100]";
   if (pixel_step < 0 || pixel_step > 4) return "planes.pixel_step must be in [0, 4] (0: auto)";
-  if (cell_size / std::max(1, pixel_step) < 3)
+  if (cell_size / effective_pixel_step() < 3)
     return "planes.cell_size / planes.pixel_step must be at least 3 (pixels of a cell's side)";
   if (!std::isfinite(cell_tolerance) || cell_tolerance <= 0.0 || cell_tolerance > 1.0)
     return "planes.cell_tolerance must be in (0, 1] metres";
@@ -1088,8 +1093,7 @@ PlaneExtraction PlaneExtractor::extract(const cv::Mat& depth, Labels labels) con
     return result;
   }
   std::lock_guard<std::mutex> lock(workspace_->mutex);
-  // Auto (0) where the application did not choose: every pixel.
-  const int step = std::max(1, options_.pixel_step);
+  const int step = options_.effective_pixel_step();
   if (step == 1) {
     PlaneExtraction result = Extraction(camera_, options_, depth, workspace_->buffers).run();
     merge_coplanar(options_, result);

@@ -263,17 +263,16 @@ TEST(CliRun, RealTimeRunAccountsForEveryFrame) {
   // The images were prepared off the frame loop.
   EXPECT_TRUE(summary["stages"].contains("prepare"));
   EXPECT_FALSE(summary["stages"].contains("undistort"));
-  // lines.detector and planes.pixel_step auto: a run with a deadline takes FLD and planes from
-  // every other pixel, a run without one LSD and every pixel (config.yaml holds the effective
-  // values).
+  // lines.detector auto: a run with a deadline takes FLD, a run without one LSD; planes.pixel_step
+  // auto: every 3rd pixel in both (config.yaml holds the effective values).
   const auto has_line = [](const std::vector<std::string>& lines, const std::string& text) {
     return std::any_of(lines.begin(), lines.end(),
                        [&](const std::string& l) { return l.find(text) != std::string::npos; });
   };
   EXPECT_TRUE(has_line(lines_of(out / "config.yaml"), "detector: fld"));
   EXPECT_TRUE(has_line(lines_of(main_run().out / "config.yaml"), "detector: lsd"));
-  EXPECT_TRUE(has_line(lines_of(out / "config.yaml"), "pixel_step: 2"));
-  EXPECT_TRUE(has_line(lines_of(main_run().out / "config.yaml"), "pixel_step: 1"));
+  EXPECT_TRUE(has_line(lines_of(out / "config.yaml"), "pixel_step: 3"));
+  EXPECT_TRUE(has_line(lines_of(main_run().out / "config.yaml"), "pixel_step: 3"));
   // system.extract_ahead auto: in real time the reader extracts while the loop tracks the frame
   // before, and the loop only finishes the features; offline the frame's own thread extracts
   // and waits for its lines and planes. Set to true, the reader extracts offline too.

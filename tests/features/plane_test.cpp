@@ -139,8 +139,10 @@ double angle_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
 /// Checks every extracted plane against the surface most of its pixels see (no spurious planes,
 /// normal and distance accuracy), the labels against the planes, and that every big visible
 /// surface was found (counted in big_surfaces, so that the check cannot pass vacuously).
+/// min_within_1cm: the share of a plane's labelled pixels whose true point lies within 1 cm of
+/// it (see the rendered-room tests).
 void check_view(const View& view, const cv::Mat& depth, const PlaneExtraction& extraction,
-                int& big_surfaces) {
+                int& big_surfaces, double min_within_1cm = 0.98) {
   const PinholeCamera camera = sequence().camera();
   SCOPED_TRACE("view " + std::to_string(view.index));
   ASSERT_EQ(extraction.labels.type(), CV_8SC1);
@@ -181,7 +183,7 @@ void check_view(const View& view, const cv::Mat& depth, const PlaneExtraction& e
     EXPECT_NEAR(plane.normal.norm(), 1.0, 1e-9);
     EXPECT_GT(plane.d, 0.0);
     EXPECT_EQ(plane.num_pixels, labelled[k]);
-    EXPECT_GT(within_1cm[k], 0.98 * labelled[k]);
+    EXPECT_GT(within_1cm[k], min_within_1cm * labelled[k]);
     if (k > 0) {
       EXPECT_LE(plane.num_pixels, extraction.planes[k - 1].num_pixels);
     }
@@ -234,26 +236,41 @@ PlaneExtractor make_extractor(const PlaneOptions& options = {}) {
   return PlaneExtractor(sequence().camera(), options);
 }
 
-TEST(PlaneExtractor, RenderedRoomNoiseFree) {
-  const PlaneExtractor extractor = make_extractor();
-  int big_surfaces = 0;
-  for (const View& view : views()) {
-    const PlaneExtraction extraction = extractor.extract(view.frame.depth);
-    check_view(view, view.frame.depth, extraction, big_surfaces);
-    for (const PlaneFeature& plane : extraction.planes) EXPECT_LT(plane.rms, 0.002);
+// Every pixel (pixel_step 1) and the default sampling (every 3rd pixel of every 3rd row). The
+// planes are fitted to the samples there, 1/9 of the pixels, and the labels of the full image
+// follow those fits: in these views the worst plane has 98.2 % of its labelled pixels' true
+// points within 1 cm of it at the default sampling, 99.3 % at 1.
+struct Sampling {
+  int pixel_step;
+  double min_within_1cm;
+};
+constexpr Sampling kSamplings[] = {{1, 0.98}, {0, 0.97}};
+
+/// Extracts the planes of every rendered view at each sampling and checks them (check_view);
+/// max_rms: the bound on each plane's RMS fit (0: none).
+void check_rendered_room(bool noisy, double max_rms) {
+  for (const Sampling sampling : kSamplings) {
+    SCOPED_TRACE("pixel_step " + std::to_string(sampling.pixel_step));
+    PlaneOptions options;
+    options.pixel_step = sampling.pixel_step;
+    const PlaneExtractor extractor = make_extractor(options);
+    int big_surfaces = 0;
+    for (const View& view : views()) {
+      const cv::Mat& depth = noisy ? view.noisy_depth : view.frame.depth;
+      const PlaneExtraction extraction = extractor.extract(depth);
+      check_view(view, depth, extraction, big_surfaces, sampling.min_within_1cm);
+      if (max_rms > 0.0) {
+        for (const PlaneFeature& plane : extraction.planes) EXPECT_LT(plane.rms, max_rms);
+      }
+    }
+    std::printf("[ info     ] %d big surfaces checked\n", big_surfaces);
+    EXPECT_GE(big_surfaces, 20);
   }
-  std::printf("[ info     ] %d big surfaces checked\n", big_surfaces);
-  EXPECT_GE(big_surfaces, 20);
 }
 
-TEST(PlaneExtractor, RenderedRoomKinectNoise) {
-  const PlaneExtractor extractor = make_extractor();
-  int big_surfaces = 0;
-  for (const View& view : views())
-    check_view(view, view.noisy_depth, extractor.extract(view.noisy_depth), big_surfaces);
-  std::printf("[ info     ] %d big surfaces checked\n", big_surfaces);
-  EXPECT_GE(big_surfaces, 20);
-}
+TEST(PlaneExtractor, RenderedRoomNoiseFree) { check_rendered_room(false, 0.002); }
+
+TEST(PlaneExtractor, RenderedRoomKinectNoise) { check_rendered_room(true, 0.0); }
 
 TEST(PlaneExtractor, SinglePlaneFillsTheImage) {
   const PinholeCamera camera = test::make_camera();
@@ -423,6 +440,20 @@ TEST(PlaneExtractor, MaxPlanesKeepsTheLargest) {
   EXPECT_TRUE(make_extractor(options).extract(view.frame.depth).planes.empty());
 }
 
+TEST(PlaneOptions, AutoPixelStepLeavesCellsThreeSamplesWide) {
+  PlaneOptions options;  // cell_size 12, pixel_step 0 (auto)
+  EXPECT_EQ(options.effective_pixel_step(), 3);
+  for (auto [cell_size, step] : {std::pair{10, 3}, std::pair{9, 3}, std::pair{8, 2},
+                                 std::pair{5, 1}, std::pair{3, 1}, std::pair{100, 3}}) {
+    options.cell_size = cell_size;
+    EXPECT_EQ(options.effective_pixel_step(), step) << cell_size;
+    EXPECT_FALSE(options.check().has_value()) << cell_size;
+  }
+  options.pixel_step = 2;  // a chosen step is kept
+  options.cell_size = 12;
+  EXPECT_EQ(options.effective_pixel_step(), 2);
+}
+
 TEST(PlaneExtractor, OtherCellSizes) {
   // Cell sizes that do not divide the image (partial cells at the right and bottom borders).
   // Also every other pixel (pixel_step 2) and every third, with cells of 3x3 to 8x8 samples.
@@ -445,7 +476,7 @@ TEST(PlaneExtractor, OtherCellSizes) {
 TEST(PlaneExtractor, WithoutLabelsTheSamePlanes) {
   // The frame asks for the planes only: the same planes, without labelling the image (at
   // pixel_step 2 their sizes are then counted on the samples).
-  for (int step : {1, 2}) {
+  for (int step : {1, 2, 3}) {
     SCOPED_TRACE(step);
     PlaneOptions options;
     options.pixel_step = step;

@@ -14,17 +14,18 @@
 namespace mcslam::features {
 
 struct PlaneOptions {
-  /// Side of the square cells (pixels of the full image).
-  int cell_size = 10;
+  /// Side of the square cells (pixels of the full image). 12 leaves a cell 4x4 samples at the
+  /// default sampling (pixel_step auto: 3).
+  int cell_size = 12;
   /// Planes are found from every pixel_step-th pixel of every pixel_step-th row (1: all
-  /// pixels). At 2 a 10-pixel cell still fits its plane to 25 points, and the extraction of
-  /// freiburg1_rpy's planes without labels takes 0.68x the time (one core). 0, auto (the
-  /// default): 1, except in runs with a deadline (`mcslam run --realtime`, the ROS node), where
-  /// the application picks 2. Offline, Bonn crowd part 1 from frame 240 gave 0.0200 m (5 runs,
-  /// threaded) against 0.0172 m at 1, and 0.0228 against 0.0180 m sequential (third stop); in
-  /// real time on 2 cores, part 1 with yolov8n_320, 4 runs each interleaved, the frame's median
-  /// fell from 33.5 to 30.1 ms, 90.8 % of the frames were processed against 87.3 % (medians),
-  /// ATE 0.0133 against 0.0127 m (docs/crowd.md).
+  /// pixels). 0, auto (the default): the sparsest sampling, at most every 3rd pixel, that
+  /// leaves a cell 3 samples a side (effective_pixel_step()): 3 with the default cells, samples
+  /// 6 mm apart at 1 m in a 525-px camera, where a frame's planes (floor, walls, desks) span
+  /// metres and the smallest one kept (min_area_fraction) holds 680 samples at 640x480. On
+  /// freiburg1_rpy, threaded, the plane thread takes about 2 ms a frame at 3 against 8-11 ms at
+  /// 1, with the same ATE there, on Bonn crowd part 1 and on 7 synthetic scenes. Every 4th
+  /// pixel (1.3-1.7 ms) classified the synthetic pushed chair as constrained on 74 % of its
+  /// moving frames against 83 % at 1-3 (docs/crowd.md, seventeenth stop).
   int pixel_step = 0;
   /// A cell is planar when the RMS distance of its points to their plane is below
   /// max(cell_tolerance, cell_tolerance_per_metre * z^2) metres (depth noise grows with z^2).
@@ -50,6 +51,10 @@ struct PlaneOptions {
   /// plane: a plane is infinite, and the map must not hold it twice.
   double coplanar_angle_deg = 3.0;
   double coplanar_distance = 0.01;
+
+  /// The sampling step used: pixel_step, or with 0 (auto) the largest step up to 3 that leaves
+  /// cell_size / step >= 3.
+  int effective_pixel_step() const;
 
   std::optional<std::string> check() const;
 };
