@@ -23,7 +23,8 @@ struct PlaneOptions {
   /// 6 mm apart at 1 m in a 525-px camera, where a frame's planes (floor, walls, desks) span
   /// metres and the smallest one kept (min_area_fraction) holds 680 samples at 640x480. On
   /// freiburg1_rpy, threaded, the plane thread takes about 2 ms a frame at 3 against 8-11 ms at
-  /// 1, with the same ATE there, on Bonn crowd part 1 and on 7 synthetic scenes. Every 4th
+  /// 1; the ATE stays within the runs' spread on freiburg1_rpy, Bonn crowd part 1 and 7
+  /// synthetic scenes, and part 1 from frame 240 gave 0.0105 against 0.0099 m. Every 4th
   /// pixel (1.3-1.7 ms) classified the synthetic pushed chair as constrained on 74 % of its
   /// moving frames against 83 % at 1-3 (docs/crowd.md, seventeenth stop).
   int pixel_step = 0;
