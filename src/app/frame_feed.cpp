@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <chrono>
-#include <future>
+#include <optional>
+
+#include "mcslam/core/worker.hpp"
 
 namespace mcslam::app {
 
@@ -14,7 +16,10 @@ FrameFeed::FrameFeed(Loader load, std::vector<double> timestamps, FeedOptions op
       timestamps_(std::move(timestamps)),
       options_(options) {
   options_.lookahead = std::max<std::size_t>(options_.lookahead, 1);
-  reader_ = std::thread([this] { read(); });
+  reader_ = std::thread([this] {
+    set_current_thread_name("mcslam-reader");
+    read();
+  });
 }
 
 FrameFeed::~FrameFeed() {
@@ -104,7 +109,10 @@ void FrameFeed::read() {
   // for its time and is finished, as a camera's driver decodes the next image while the consumer
   // works on this one: the reader then spends the longer of the two on a frame, not their sum
   // (measured in docs/crowd.md). Without one, loading is all the reader does.
-  std::future<Slot> next_load;
+  Slot next;  // frame k + 1, loaded by `loader` (declared first: it outlives the loader's jobs)
+  bool next_posted = false;
+  std::optional<Worker> loader;
+  if (finish_) loader.emplace("mcslam-loader");
   for (std::size_t k = 0; k < timestamps_.size(); ++k) {
     {
       std::unique_lock<std::mutex> lock(mutex_);
@@ -113,14 +121,18 @@ void FrameFeed::read() {
       k = *next;
     }
     Slot slot;
-    if (next_load.valid()) {
-      slot = next_load.get();                    // frame k + 1 of the iteration before
+    if (next_posted) {
+      loader->wait();  // load_slot() keeps a load's error in its slot: this does not throw
+      next_posted = false;
+      slot = std::move(next);                    // frame k + 1 of the iteration before
       if (slot.index != k) slot = load_slot(k);  // the reader was late and skipped it
     } else {
       slot = load_slot(k);
     }
-    if (finish_ && !slot.error && k + 1 < timestamps_.size())
-      next_load = std::async(std::launch::async, [this, k] { return load_slot(k + 1); });
+    if (loader && !slot.error && k + 1 < timestamps_.size()) {
+      loader->post([this, k, &next] { next = load_slot(k + 1); });
+      next_posted = true;
+    }
     std::unique_lock<std::mutex> lock(mutex_);
     if (!start_) start_ = Clock::now();  // the camera starts with its first frame
     if (options_.realtime && !slot.error) {

@@ -5,6 +5,7 @@
 
 #include "mcslam/core/thread_priority.hpp"
 #include "mcslam/core/timing.hpp"
+#include "mcslam/core/worker.hpp"
 
 namespace mcslam::slam {
 
@@ -26,6 +27,7 @@ ModelDetectionSource::ModelDetectionSource(perception::Detector detector, int in
                                            int niceness)
     : detector_(std::move(detector)), interval_(std::max(1, interval)) {
   worker_ = std::thread([this, niceness] {
+    set_current_thread_name("mcslam-detector");
     lower_current_thread_priority(niceness);  // best effort
     run();
   });

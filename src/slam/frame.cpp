@@ -2,8 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
-#include <future>
+#include <exception>
 #include <limits>
+
+#include "mcslam/core/worker.hpp"
 
 namespace mcslam::slam {
 namespace {
@@ -24,8 +26,14 @@ FrameBuilder::FrameBuilder(const PinholeCamera& camera, const SystemOptions& opt
       orb_(options.orb),
       pyramid_(std::make_shared<features::ScalePyramid>(options.orb.num_levels,
                                                         options.orb.scale_factor)) {
-  if (use_.lines) lines_ = std::make_unique<features::LineExtractor>(options.lines);
-  if (use_.planes) planes_ = std::make_unique<features::PlaneExtractor>(camera, options.planes);
+  if (use_.lines) {
+    lines_ = std::make_unique<features::LineExtractor>(options.lines);
+    line_worker_ = std::make_unique<Worker>("mcslam-lines");
+  }
+  if (use_.planes) {
+    planes_ = std::make_unique<features::PlaneExtractor>(camera, options.planes);
+    plane_worker_ = std::make_unique<Worker>("mcslam-planes");
+  }
 }
 
 FrameBuilder::~FrameBuilder() = default;
@@ -94,29 +102,41 @@ DetectedFeatures FrameBuilder::detect(const cv::Mat& gray, const cv::Mat& depth,
                                       const cv::Mat& moving) const {
   DetectedFeatures out;
   out.size = gray.size();
-  // Lines and planes are extracted on their own threads while this one extracts the points:
-  // the three read the images only and write their own lists.
-  std::future<void> lines, planes;
-  if (use_.lines)
-    lines = std::async(std::launch::async, [&] {
+  // Lines and planes are extracted on their workers while this thread extracts the points: the
+  // three read the images only and write their own lists.
+  if (line_worker_)
+    line_worker_->post([&] {
       Stopwatch w;
       out.lines = lines_->extract(gray);
       for (auto& line : out.lines) lines_->fit_depth(camera_, depth, line);
       out.line_ms = w.elapsed_ms();
     });
-  if (use_.planes)
-    planes = std::async(std::launch::async, [&] {
+  if (plane_worker_)
+    plane_worker_->post([&] {
       Stopwatch w;
       // The frame uses the planes, not the pixels' labels.
       out.planes = planes_->extract(depth, features::PlaneExtractor::Labels::kNone).planes;
       out.plane_ms = w.elapsed_ms();
     });
   Stopwatch watch;
-  if (use_.points) out.orb = orb_.extract(gray, moving);
+  // Both workers are waited for even when the points throw: their jobs refer to this frame.
+  std::exception_ptr error;
+  try {
+    if (use_.points) out.orb = orb_.extract(gray, moving);
+  } catch (...) {
+    error = std::current_exception();
+  }
   out.orb_ms = watch.elapsed_ms();
   watch.restart();
-  if (lines.valid()) lines.get();
-  if (planes.valid()) planes.get();
+  for (Worker* worker : {line_worker_.get(), plane_worker_.get()}) {
+    if (!worker) continue;
+    try {
+      worker->wait();
+    } catch (...) {
+      if (!error) error = std::current_exception();
+    }
+  }
+  if (error) std::rethrow_exception(error);
   out.wait_ms = watch.elapsed_ms();
   return out;
 }

@@ -8,6 +8,7 @@
 
 #include "map_adjustment.hpp"
 #include "mcslam/core/thread_priority.hpp"
+#include "mcslam/core/worker.hpp"
 #include "mcslam/features/lines.hpp"
 #include "mcslam/optim/bundle_adjustment.hpp"
 #include "measurement.hpp"
@@ -127,6 +128,7 @@ void LocalMapper::start(int niceness) {
   if (thread_.joinable()) return;
   stop_ = false;
   thread_ = std::thread([this, niceness] {
+    set_current_thread_name("mcslam-mapper");
     lower_current_thread_priority(niceness);  // best effort: the mapper runs either way
     run();
   });

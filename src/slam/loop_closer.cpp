@@ -9,6 +9,7 @@
 
 #include "map_adjustment.hpp"
 #include "mcslam/core/thread_priority.hpp"
+#include "mcslam/core/worker.hpp"
 #include "mcslam/optim/pose_optimizer.hpp"
 #include "mcslam/place/matching.hpp"
 #include "mcslam/slam/local_mapper.hpp"
@@ -63,6 +64,7 @@ void LoopCloser::start(int niceness) {
   if (thread_.joinable()) return;
   stop_ = false;
   thread_ = std::thread([this, niceness] {
+    set_current_thread_name("mcslam-loop");
     lower_current_thread_priority(niceness);  // best effort
     run();
   });

@@ -16,6 +16,10 @@
 #include "mcslam/perception/detection.hpp"
 #include "mcslam/slam/options.hpp"
 
+namespace mcslam {
+class Worker;
+}  // namespace mcslam
+
 namespace mcslam::slam {
 
 /// Detected objects of a frame, in undistorted pixel coordinates (the features' frame).
@@ -126,6 +130,9 @@ class FrameBuilder {
   features::OrbExtractor orb_;
   std::unique_ptr<features::LineExtractor> lines_;
   std::unique_ptr<features::PlaneExtractor> planes_;
+  /// The threads lines_ and planes_ run on, one each (detect() is called for every frame).
+  std::unique_ptr<Worker> line_worker_;
+  std::unique_ptr<Worker> plane_worker_;
   std::shared_ptr<const features::ScalePyramid> pyramid_;
 };
 
