@@ -24,7 +24,8 @@ struct PlaneOptions {
   /// metres and the smallest one kept (min_area_fraction) holds 680 samples at 640x480. On
   /// freiburg1_rpy, threaded, the plane thread takes about 2 ms a frame at 3 against 8-11 ms at
   /// 1; the ATE stays within the runs' spread on freiburg1_rpy, Bonn crowd part 1 and 7
-  /// synthetic scenes, and part 1 from frame 240 gave 0.0105 against 0.0099 m. Every 4th
+  /// synthetic scenes, and part 1 from frame 240 gave 0.0096 against 0.0104 m (6 rounds
+  /// interleaved with the build at every pixel, eighteenth stop). Every 4th
   /// pixel (1.3-1.7 ms) classified the synthetic pushed chair as constrained on 74 % of its
   /// moving frames against 83 % at 1-3 (docs/crowd.md, seventeenth stop).
   int pixel_step = 0;
