@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <memory>
 #include <numbers>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
@@ -15,6 +16,7 @@
 #include "line_band_descriptor.hpp"
 #include "mcslam/core/error.hpp"
 #include "mcslam/features/lines.hpp"
+#include "region_line_detector.hpp"
 
 namespace mcslam::features {
 namespace {
@@ -254,8 +256,8 @@ std::optional<std::string> LineOptions::check() const {
   if (!std::isfinite(min_length) || min_length < 0.0)
     return "lines.min_length must be finite and >= 0";
   if (max_lines < 1 || max_lines > 100000) return "lines.max_lines must be in [1, 100000]";
-  if (detector != "lsd" && detector != "fld" && detector != "auto")
-    return "lines.detector must be lsd, fld or auto, got '" + detector + "'";
+  if (detector != "lsd" && detector != "fld" && detector != "region" && detector != "auto")
+    return "lines.detector must be lsd, fld, region or auto, got '" + detector + "'";
   if (!std::isfinite(detection_scale) || detection_scale < 0.05 || detection_scale > 1.0)
     return "lines.detection_scale must be in [0.05, 1]";
   if (depth_samples < 4 || depth_samples > 256) return "lines.depth_samples must be in [4, 256]";
@@ -285,6 +287,7 @@ Eigen::Vector3d LineFeature::coefficients() const {
 struct LineExtractor::Impl {
   cv::Ptr<cv::LineSegmentDetector> lsd;
   cv::Ptr<cv::ximgproc::FastLineDetector> fld;
+  std::unique_ptr<detail::RegionLineDetector> region;
   // Scratch buffers reused between frames (hence: one extractor per thread).
   detail::LineBandDescriber lbd;
   cv::Mat scaled;
@@ -294,16 +297,18 @@ struct LineExtractor::Impl {
 LineExtractor::LineExtractor(const LineOptions& options) : options_(options) {
   if (auto problem = options_.check()) throw InputError(*problem);
   impl_ = std::make_unique<Impl>();
-  // Standard refinement (regions are cut where the aligned-pixel density drops, which splits
-  // curved edges) on an image we scale ourselves: LSD's own scale would blur the full image.
   if (options_.detector == "fld") {
     // Segments of at least 10 px of the detection image (min_length filters at full resolution
     // afterwards), edge pixels within 1.41 px of the fitted line (one diagonal pixel), Canny
     // hysteresis 50/50 with a 3x3 aperture: the detector's published defaults. Collinear pieces
     // are not merged: LSD does not merge either, and the map merges a line's views.
     impl_->fld = cv::ximgproc::createFastLineDetector(10, 1.414213562f, 50.0, 50.0, 3, false);
-  } else {
+  } else if (options_.detector == "lsd") {
+    // Standard refinement (regions are cut where the aligned-pixel density drops, which splits
+    // curved edges) on an image we scale ourselves: LSD's own scale would blur the full image.
     impl_->lsd = cv::createLineSegmentDetector(cv::LSD_REFINE_STD, 1.0);
+  } else {
+    impl_->region = std::make_unique<detail::RegionLineDetector>();
   }
 }
 
@@ -328,14 +333,16 @@ std::vector<LineFeature> LineExtractor::extract(const cv::Mat& gray) const {
     impl.segments.clear();
     if (impl.fld)
       impl.fld->detect(image, impl.segments);
+    else if (impl.region)
+      impl.region->detect(image, impl.segments);
     else
       impl.lsd->detect(image, impl.segments);
   } catch (const cv::Exception&) {
     return result;
   }
 
-  // LSD reports pixel-centre coordinates of the scaled image; cv::resize maps pixel centres as
-  // x_scaled = (x + 0.5) * sx - 0.5.
+  // The detectors report pixel-centre coordinates of the scaled image; cv::resize maps pixel
+  // centres as x_scaled = (x + 0.5) * sx - 0.5.
   const double sx = static_cast<double>(size.width) / gray.cols;
   const double sy = static_cast<double>(size.height) / gray.rows;
   auto to_full = [&](double x, double y) {
@@ -363,15 +370,16 @@ std::vector<LineFeature> LineExtractor::extract(const cv::Mat& gray) const {
     if (!(length >= options_.min_length) || length <= 0.0) continue;
     candidates.push_back({a, b, length, static_cast<int>(i)});
   }
-  // Longest first; LSD's output order (deterministic) breaks ties.
+  // Longest first; the detector's output order (deterministic) breaks ties.
   std::sort(candidates.begin(), candidates.end(), [](const Candidate& x, const Candidate& y) {
     return x.length != y.length ? x.length > y.length : x.index < y.index;
   });
   if (candidates.size() > static_cast<std::size_t>(options_.max_lines))
     candidates.resize(static_cast<std::size_t>(options_.max_lines));
   if (candidates.empty()) return result;
-  // FLD's segments are moved onto their edges' sub-pixel position (LSD's already are), only
-  // those kept: the refinement moves a segment by at most a pixel of the detection image.
+  // FLD's segments are moved onto their edges' sub-pixel position (LSD's and the region detector's
+  // already are), only those kept: the refinement moves a segment by at most a pixel of the
+  // detection image.
   if (impl.fld) {
     for (Candidate& c : candidates) {
       cv::Vec4f refined = impl.segments[static_cast<std::size_t>(c.index)];

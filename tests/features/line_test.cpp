@@ -263,7 +263,7 @@ TEST(LineExtractor, RectangleEdgesAtSubpixelPositions) {
   // boundaries x = 99.5, x = 299.5, y = 119.5, y = 299.5 (pixel-centre coordinates).
   cv::Mat gray(480, 640, CV_8UC1, cv::Scalar(60));
   gray(cv::Rect(100, 120, 200, 180)).setTo(180);
-  for (const char* detector : {"lsd", "fld"})
+  for (const char* detector : {"lsd", "fld", "region"})
     for (double scale : {0.4, 0.5, 1.0}) {
       SCOPED_TRACE(detector);
       LineOptions options;

@@ -19,18 +19,20 @@ namespace mcslam::features {
 using LineDescriptor = OrbDescriptor;
 
 struct LineOptions {
-  /// The segment detector: "lsd" (OpenCV's Line Segment Detector, sub-pixel by construction)
-  /// or "fld" (the Fast Line Detector of OpenCV contrib's ximgproc: Canny edges split into
-  /// straight runs, each then moved onto its intensity step to a fraction of a pixel), or
-  /// "auto" (the default): LSD, except in runs with a deadline (`mcslam run --realtime`, the
-  /// ROS node), where the application picks FLD. Both run on the image scaled by
-  /// detection_scale. On freiburg1_rpy at 0.4, FLD with LBD takes 0.45x the time of LSD with LBD
-  /// on one core (4.4 against 9.7 ms on a slow day; 4.0 against 7.9 ms with OpenCV's LBD on a
-  /// fast one). Over 13 synthetic scenes (rooms and crowds, sequential) its ATE is
-  /// 1.03x LSD's (median ratio; 0.75-1.73), but it splits some edges LSD finds whole, and the
-  /// depth fit of a shorter piece can miss the line tests' bound (1.8 cm off the true edge at
-  /// 2.5 m against 1.5 cm), so it is not the offline default. In real time on 2 cores with the
-  /// detector it is what lets the frame keep the camera's rate (docs/crowd.md).
+  /// The segment detector, run on the image scaled by detection_scale:
+  /// - "region" (the default; "auto" means the same): mcslam's own detector with LSD's method
+  ///   (regions of pixels whose gradients share a direction within 22.5 degrees, a rectangle
+  ///   fitted to each, density refinement; src/features/region_line_detector.hpp). On 100
+  ///   frames each of freiburg1_rpy and Bonn crowd at 256 x 192, 97-98 % of OpenCV's LSD
+  ///   segments of 10 px or more come out within 0.5 px at both ends, in 0.23-0.25x its time
+  ///   on one core (1.47 against 5.78 ms; 1.20 against 5.26 ms; tests/features/
+  ///   line_detector_bench.cpp).
+  /// - "lsd": OpenCV's Line Segment Detector with standard refinement, the reference.
+  /// - "fld": the Fast Line Detector of OpenCV contrib's ximgproc (Canny edges split into
+  ///   straight runs, each then moved onto its intensity step to a fraction of a pixel). It
+  ///   splits some edges LSD finds whole, and the depth fit of a shorter piece can miss the line
+  ///   tests' bound (1.8 cm off the true edge at 2.5 m against 1.5 cm); over the synthetic
+  ///   crowds its ATE was up to 1.3x LSD's (docs/crowd.md).
   std::string detector = "auto";
   /// Segments shorter than this (pixels, full resolution) are dropped.
   double min_length = 25.0;
