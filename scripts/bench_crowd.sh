@@ -21,6 +21,8 @@
 #                    frame 240 (people in view from the first frame)
 #   realtime, realtime-before-23, realtime-lsd - default / before-23 / LSD lines
 #                    (lines.detector: lsd) with --realtime
+#   lsd, cold-lsd, realtime-fld - OpenCV's LSD instead of the region detector (the default
+#                    offline before), and FLD in real time (the default there before)
 #   no-established, cold-no-established - every observation in the pose at once, as ORB-SLAM2
 #                    (tracker.established_age: 0), instead of the established landmarks first
 #   model-size, cold-model-size, realtime-model-size - default / cold / realtime with the
@@ -66,7 +68,8 @@ settings() {  # variant -> settings file (empty: none)
     no-prior) printf 'dynamics:\n  person_prior: false\n' > "$file" ;;
     no-cold-start) printf 'system:\n  cold_start_keyframes: 0\n' > "$file" ;;
     moving-density|cold-moving-density) printf 'orb:\n  moving_density: 1\n' > "$file" ;;
-    realtime-lsd) printf 'lines:\n  detector: lsd\n' > "$file" ;;
+    realtime-lsd|lsd|cold-lsd) printf 'lines:\n  detector: lsd\n' > "$file" ;;
+    realtime-fld) printf 'lines:\n  detector: fld\n' > "$file" ;;
     opencv-pool) printf 'system:\n  opencv_threads: 0\n' > "$file" ;;
     no-established|cold-no-established) printf 'tracker:\n  established_age: 0\n' > "$file" ;;
     model-size|cold-model-size|realtime-model-size)
@@ -84,7 +87,7 @@ for v in "${names[@]}"; do  # check every name before the first run
   case "$v" in
     default|wait|no-propagation|no-background|no-movers|no-prior|no-detector|no-cold-start) ;;
     moving-density|opencv-pool|before-23|cold|cold-before-23|cold-moving-density) ;;
-    realtime|realtime-before-23|realtime-lsd) ;;
+    realtime|realtime-before-23|realtime-lsd|realtime-fld|lsd|cold-lsd) ;;
     model-size|cold-model-size|realtime-model-size|no-established|cold-no-established) ;;
     *) echo "bench_crowd: unknown variant $v" >&2; exit 2 ;;
   esac
@@ -97,9 +100,10 @@ for i in $(seq 1 "$runs"); do
     case "$v" in
       wait) args+=(--wait-detections) ;;
       no-detector) args=() ;;
-      cold|cold-before-23|cold-moving-density|cold-model-size|cold-no-established)
+      cold|cold-before-23|cold-moving-density|cold-model-size|cold-no-established|cold-lsd)
         args+=(--first-frame 240) ;;
-      realtime|realtime-before-23|realtime-lsd|realtime-model-size) args+=(--realtime) ;;
+      realtime|realtime-before-23|realtime-lsd|realtime-fld|realtime-model-size)
+        args+=(--realtime) ;;
     esac
     file=$(settings "$v")
     [ -n "$file" ] && args+=(--config "$file")

@@ -757,11 +757,10 @@ nlohmann::json run_sequence(const RunRequest& request) {
   if (request.features)
     apply_feature_list(*request.features, config.options.use.points, config.options.use.lines,
                        config.options.use.planes);
-  // lines.detector auto: a run with a deadline (real time, a live stream) takes the faster
-  // FLD. config.yaml holds the effective values of the settings read as auto.
-  const bool deadline = request.realtime || request.live;
-  if (config.options.lines.detector == "auto")
-    config.options.lines.detector = deadline ? "fld" : "lsd";
+  // lines.detector auto: the region detector, offline and in real time (it costs what FLD did
+  // and finds LSD's segments). config.yaml holds the effective values of the settings read as
+  // auto.
+  if (config.options.lines.detector == "auto") config.options.lines.detector = "region";
   config.options.planes.pixel_step = config.options.planes.effective_pixel_step();
   // system.extract_ahead auto: on where a frame the loop cannot take is lost (real time; a live
   // stream prepares its frames on the loop's thread, so there is nothing to overlap).

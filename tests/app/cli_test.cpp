@@ -263,14 +263,14 @@ TEST(CliRun, RealTimeRunAccountsForEveryFrame) {
   // The images were prepared off the frame loop.
   EXPECT_TRUE(summary["stages"].contains("prepare"));
   EXPECT_FALSE(summary["stages"].contains("undistort"));
-  // lines.detector auto: a run with a deadline takes FLD, a run without one LSD; planes.pixel_step
-  // auto: every 3rd pixel in both (config.yaml holds the effective values).
+  // lines.detector auto: the region detector in both; planes.pixel_step auto: every 3rd pixel in
+  // both (config.yaml holds the effective values).
   const auto has_line = [](const std::vector<std::string>& lines, const std::string& text) {
     return std::any_of(lines.begin(), lines.end(),
                        [&](const std::string& l) { return l.find(text) != std::string::npos; });
   };
-  EXPECT_TRUE(has_line(lines_of(out / "config.yaml"), "detector: fld"));
-  EXPECT_TRUE(has_line(lines_of(main_run().out / "config.yaml"), "detector: lsd"));
+  EXPECT_TRUE(has_line(lines_of(out / "config.yaml"), "detector: region"));
+  EXPECT_TRUE(has_line(lines_of(main_run().out / "config.yaml"), "detector: region"));
   EXPECT_TRUE(has_line(lines_of(out / "config.yaml"), "pixel_step: 3"));
   EXPECT_TRUE(has_line(lines_of(main_run().out / "config.yaml"), "pixel_step: 3"));
   // system.extract_ahead auto: in real time the reader extracts while the loop tracks the frame
