@@ -292,6 +292,10 @@ struct LineExtractor::Impl {
   detail::LineBandDescriber lbd;
   cv::Mat scaled;
   std::vector<cv::Vec4f> segments;
+
+  /// Runs the detector on `gray` scaled to `size` (into `segments`); returns the detection
+  /// image (`gray` itself or `scaled`), or nullptr when OpenCV refuses the image.
+  const cv::Mat* detect(const cv::Mat& gray, const cv::Size& size);
 };
 
 LineExtractor::LineExtractor(const LineOptions& options) : options_(options) {
@@ -314,6 +318,95 @@ LineExtractor::LineExtractor(const LineOptions& options) : options_(options) {
 
 LineExtractor::~LineExtractor() = default;
 
+namespace {
+
+/// Pixel-centre coordinates between the full image and the detection image: cv::resize maps
+/// pixel centres as x_scaled = (x + 0.5) * sx - 0.5.
+struct DetectionScale {
+  double sx = 1.0;
+  double sy = 1.0;
+
+  Eigen::Vector2d to_full(double x, double y) const {
+    return {(x + 0.5) / sx - 0.5, (y + 0.5) / sy - 0.5};
+  }
+  Eigen::Vector2d to_scaled(const Eigen::Vector2d& p) const {
+    return {(p.x() + 0.5) * sx - 0.5, (p.y() + 0.5) * sy - 0.5};
+  }
+};
+
+/// A detected segment in full-resolution pixels, clipped to the image; `index` is its place in
+/// the detector's output.
+struct Candidate {
+  Eigen::Vector2d start;
+  Eigen::Vector2d end;
+  double length;
+  int index;
+};
+
+/// The detector's segments (detection-image coordinates) at least min_length long at full
+/// resolution once clipped to the image, longest first, at most max_lines.
+std::vector<Candidate> longest_segments(const std::vector<cv::Vec4f>& segments,
+                                        const DetectionScale& scale, const cv::Size& full,
+                                        const LineOptions& options) {
+  std::vector<Candidate> candidates;
+  candidates.reserve(segments.size());
+  for (std::size_t i = 0; i < segments.size(); ++i) {
+    const cv::Vec4f& s = segments[i];
+    Eigen::Vector2d a = scale.to_full(s[0], s[1]);
+    Eigen::Vector2d b = scale.to_full(s[2], s[3]);
+    if (!a.allFinite() || !b.allFinite()) continue;
+    if (!clip_to_image(a, b, full.width, full.height)) continue;
+    const double length = (b - a).norm();
+    if (!(length >= options.min_length) || length <= 0.0) continue;
+    candidates.push_back({a, b, length, static_cast<int>(i)});
+  }
+  // Longest first; the detector's output order (deterministic) breaks ties.
+  std::sort(candidates.begin(), candidates.end(), [](const Candidate& x, const Candidate& y) {
+    return x.length != y.length ? x.length > y.length : x.index < y.index;
+  });
+  if (candidates.size() > static_cast<std::size_t>(options.max_lines))
+    candidates.resize(static_cast<std::size_t>(options.max_lines));
+  return candidates;
+}
+
+/// Moves FLD's kept segments onto their edges' sub-pixel position (LSD's and the region
+/// detector's already are there): by at most a pixel of the detection image each.
+void refine_fld_candidates(const cv::Mat& image, const std::vector<cv::Vec4f>& segments,
+                           const DetectionScale& scale, const cv::Size& full,
+                           std::vector<Candidate>& candidates) {
+  for (Candidate& c : candidates) {
+    cv::Vec4f refined = segments[static_cast<std::size_t>(c.index)];
+    refine_segment(image, refined);
+    Eigen::Vector2d a = scale.to_full(refined[0], refined[1]);
+    Eigen::Vector2d b = scale.to_full(refined[2], refined[3]);
+    if (a.allFinite() && b.allFinite() && clip_to_image(a, b, full.width, full.height)) {
+      c.start = a;
+      c.end = b;
+    }
+  }
+}
+
+}  // namespace
+
+const cv::Mat* LineExtractor::Impl::detect(const cv::Mat& gray, const cv::Size& size) {
+  // The scratch buffer never refers to the caller's image (a later resize would write into it).
+  const bool rescale = size != gray.size();
+  try {
+    if (rescale) cv::resize(gray, scaled, size, 0.0, 0.0, cv::INTER_AREA);
+    const cv::Mat& image = rescale ? scaled : gray;
+    segments.clear();
+    if (fld)
+      fld->detect(image, segments);
+    else if (region)
+      region->detect(image, segments);
+    else
+      lsd->detect(image, segments);
+    return &image;
+  } catch (const cv::Exception&) {
+    return nullptr;
+  }
+}
+
 std::vector<LineFeature> LineExtractor::extract(const cv::Mat& gray) const {
   std::vector<LineFeature> result;
   if (gray.empty() || gray.type() != CV_8UC1 || gray.dims != 2) return result;
@@ -324,87 +417,27 @@ std::vector<LineFeature> LineExtractor::extract(const cv::Mat& gray) const {
   // The detectors need a few pixels for their gradients.
   if (size.width < 8 || size.height < 8) return result;
   if (size.width > kMaxDetectionImageSide || size.height > kMaxDetectionImageSide) return result;
+  const cv::Mat* image = impl.detect(gray, size);
+  if (image == nullptr) return result;
 
-  // The scratch buffer never refers to the caller's image (a later resize would write into it).
-  const bool rescale = size != gray.size();
-  const cv::Mat& image = rescale ? impl.scaled : gray;
-  try {
-    if (rescale) cv::resize(gray, impl.scaled, size, 0.0, 0.0, cv::INTER_AREA);
-    impl.segments.clear();
-    if (impl.fld)
-      impl.fld->detect(image, impl.segments);
-    else if (impl.region)
-      impl.region->detect(image, impl.segments);
-    else
-      impl.lsd->detect(image, impl.segments);
-  } catch (const cv::Exception&) {
-    return result;
-  }
-
-  // The detectors report pixel-centre coordinates of the scaled image; cv::resize maps pixel
-  // centres as x_scaled = (x + 0.5) * sx - 0.5.
-  const double sx = static_cast<double>(size.width) / gray.cols;
-  const double sy = static_cast<double>(size.height) / gray.rows;
-  auto to_full = [&](double x, double y) {
-    return Eigen::Vector2d((x + 0.5) / sx - 0.5, (y + 0.5) / sy - 0.5);
-  };
-  auto to_scaled = [&](const Eigen::Vector2d& p) {
-    return Eigen::Vector2d((p.x() + 0.5) * sx - 0.5, (p.y() + 0.5) * sy - 0.5);
-  };
-
-  struct Candidate {
-    Eigen::Vector2d start;
-    Eigen::Vector2d end;
-    double length;
-    int index;
-  };
-  std::vector<Candidate> candidates;
-  candidates.reserve(impl.segments.size());
-  for (std::size_t i = 0; i < impl.segments.size(); ++i) {
-    const cv::Vec4f& s = impl.segments[i];
-    Eigen::Vector2d a = to_full(s[0], s[1]);
-    Eigen::Vector2d b = to_full(s[2], s[3]);
-    if (!a.allFinite() || !b.allFinite()) continue;
-    if (!clip_to_image(a, b, gray.cols, gray.rows)) continue;
-    const double length = (b - a).norm();
-    if (!(length >= options_.min_length) || length <= 0.0) continue;
-    candidates.push_back({a, b, length, static_cast<int>(i)});
-  }
-  // Longest first; the detector's output order (deterministic) breaks ties.
-  std::sort(candidates.begin(), candidates.end(), [](const Candidate& x, const Candidate& y) {
-    return x.length != y.length ? x.length > y.length : x.index < y.index;
-  });
-  if (candidates.size() > static_cast<std::size_t>(options_.max_lines))
-    candidates.resize(static_cast<std::size_t>(options_.max_lines));
+  const DetectionScale map{static_cast<double>(size.width) / gray.cols,
+                           static_cast<double>(size.height) / gray.rows};
+  std::vector<Candidate> candidates = longest_segments(impl.segments, map, gray.size(), options_);
   if (candidates.empty()) return result;
-  // FLD's segments are moved onto their edges' sub-pixel position (LSD's and the region detector's
-  // already are), only those kept: the refinement moves a segment by at most a pixel of the
-  // detection image.
-  if (impl.fld) {
-    for (Candidate& c : candidates) {
-      cv::Vec4f refined = impl.segments[static_cast<std::size_t>(c.index)];
-      refine_segment(image, refined);
-      Eigen::Vector2d a = to_full(refined[0], refined[1]);
-      Eigen::Vector2d b = to_full(refined[2], refined[3]);
-      if (a.allFinite() && b.allFinite() && clip_to_image(a, b, gray.cols, gray.rows)) {
-        c.start = a;
-        c.end = b;
-      }
-    }
-  }
+  if (impl.fld) refine_fld_candidates(*image, impl.segments, map, gray.size(), candidates);
 
   // LBD on the detection image, where the segments were found (so its 9 bands of 7 pixels are
   // detection-image pixels, 63 across: about 30 cm at 1 m in freiburg1's camera at 0.4), from
   // one gradient image (line_band_descriptor.hpp). The direction start -> end is the detector's:
-  // LSD and FLD orient a segment by its gradient's polarity, so the descriptor (which depends on
-  // it) is comparable between views.
-  if (!impl.lbd.set_image(image)) return result;
+  // each detector orients a segment by its gradient's polarity, so the descriptor (which depends
+  // on it) is comparable between views.
+  if (!impl.lbd.set_image(*image)) return result;
   result.reserve(candidates.size());
   for (const Candidate& c : candidates) {
     LineFeature f;
     f.start = c.start.cast<float>();
     f.end = c.end.cast<float>();
-    f.descriptor = impl.lbd.describe(to_scaled(c.start), to_scaled(c.end));
+    f.descriptor = impl.lbd.describe(map.to_scaled(c.start), map.to_scaled(c.end));
     result.push_back(f);
   }
   return result;
