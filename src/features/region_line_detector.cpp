@@ -123,7 +123,7 @@ void RegionLineDetector::grow(int seed, double cos_tolerance) {
   region_y_ = ry;
 }
 
-bool RegionLineDetector::fit_rect(double rx, double ry, Rect& rect) const {
+bool RegionLineDetector::fit_rect(Rect& rect) const {
   double sw = 0.0, sx = 0.0, sy = 0.0;
   for (const int p : region_) {
     const double w = magnitude_[static_cast<std::size_t>(p)];
@@ -147,7 +147,7 @@ bool RegionLineDetector::fit_rect(double rx, double ry, Rect& rect) const {
   const double theta = 0.5 * std::atan2(2.0 * sxy, sxx - syy);
   double dx = std::cos(theta);
   double dy = std::sin(theta);
-  if (dx * rx + dy * ry < 0.0) {
+  if (dx * region_x_ + dy * region_y_ < 0.0) {
     dx = -dx;
     dy = -dy;
   }
@@ -202,7 +202,7 @@ bool RegionLineDetector::refine(Rect& rect) {
   // At a tolerance of half a turn or more every direction is aligned.
   grow(seed, tolerance >= std::numbers::pi ? -1.0 : std::cos(tolerance));
   if (region_.size() < 2) return false;
-  if (!fit_rect(region_x_, region_y_, rect)) return false;
+  if (!fit_rect(rect)) return false;
   if (density(rect) >= kMinDensity) return true;
   return shrink(rect);
 }
@@ -213,8 +213,6 @@ bool RegionLineDetector::shrink(Rect& rect) {
   const double sy = y_of(seed);
   double radius2 = std::max(squared_distance(sx, sy, rect.x1, rect.y1),
                             squared_distance(sx, sy, rect.x2, rect.y2));
-  const double rx = region_x_;
-  const double ry = region_y_;
   while (density(rect) < kMinDensity) {
     radius2 *= kShrinkFactor * kShrinkFactor;
     std::size_t kept = 0;
@@ -227,7 +225,7 @@ bool RegionLineDetector::shrink(Rect& rect) {
     }
     region_.resize(kept);
     if (region_.size() < 2) return false;
-    if (!fit_rect(rx, ry, rect)) return false;
+    if (!fit_rect(rect)) return false;
   }
   return true;
 }
@@ -256,7 +254,7 @@ void RegionLineDetector::detect(const cv::Mat& gray, std::vector<cv::Vec4f>& seg
     grow(seed, cos_tolerance);
     if (region_.size() < min_region) continue;
     Rect rect;
-    if (!fit_rect(region_x_, region_y_, rect)) continue;
+    if (!fit_rect(rect)) continue;
     if (!refine(rect)) continue;
     // The gradients are centred half a pixel right of and below their top-left pixel.
     segments.emplace_back(static_cast<float>(rect.x1 + 0.5), static_cast<float>(rect.y1 + 0.5),

@@ -39,8 +39,9 @@ class RegionLineDetector {
   /// Grows the region of `seed` with the alignment tolerance cos_tolerance into region_.
   void grow(int seed, double cos_tolerance);
   /// The rectangle of the pixels in region_ (weighted by gradient magnitude), its main axis
-  /// oriented like the region's mean level-line direction (rx, ry). False when degenerate.
-  bool fit_rect(double rx, double ry, Rect& rect) const;
+  /// oriented like the region's mean level-line direction (region_x_, region_y_). False when
+  /// degenerate.
+  bool fit_rect(Rect& rect) const;
   double density(const Rect& rect) const;
   /// LSD's standard refinement of region_ when its rectangle is too sparsely filled: regrow
   /// from the seed with a tolerance from the angles near it, then shrink the region's radius
