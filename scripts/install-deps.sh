@@ -13,6 +13,8 @@ PACKAGES=(
   libcli11-dev
   libspdlog-dev libfmt-dev
   nlohmann-json3-dev
+  liboctomap-dev  # the dense occupancy map (src/mapping: OctoMap's log-odds octree, ray casting)
+  libsqlite3-dev liblz4-dev libzstd-dev  # ROS 2 recordings: sqlite3 storage, MCAP chunks, rosbag2 zstd
   libboost-dev  # Boost.Beast (header-only): the live viewer's HTTP and WebSocket server
   libgtest-dev libgmock-dev
   libbenchmark-dev
@@ -24,7 +26,7 @@ PACKAGES=(
   chromium  # headless browser test of report.html
   # ROS 1 (the optional ros module: bags, `mcslam ros`; roscore for its test)
   libroscpp-dev librosbag-storage-dev libmessage-filters-dev libtf2-ros-dev libtf2-msgs-dev
-  libsensor-msgs-dev libgeometry-msgs-dev libnav-msgs-dev libstd-msgs-dev
+  libsensor-msgs-dev libgeometry-msgs-dev libnav-msgs-dev libstd-msgs-dev libvisualization-msgs-dev
   pluginlib-dev librcpputils-dev libament-index-cpp-dev  # included by rosbag/bag.h
   python3-roslaunch python3-rosmaster rosout
   # Slurm 22.05 (slurmctld, slurmd, sbatch, squeue, sacct) and munge: the one-node cluster the
