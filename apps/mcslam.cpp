@@ -15,6 +15,7 @@
 #include "mcslam/app/run.hpp"
 #include "mcslam/app/vocabulary.hpp"
 #include "mcslam/core/error.hpp"
+#include "mcslam/core/thread_failure.hpp"
 #include "mcslam/eval/bonn.hpp"
 #include "mcslam/eval/metrics.hpp"
 #include "mcslam/io/trajectory_io.hpp"
@@ -359,6 +360,10 @@ int main(int argc, char** argv) {
                       "run relocalises into it and maps on");
   run_cmd->add_flag("--localize", run.localize,
                     "With --load-session: track against the loaded map without changing it");
+  run_cmd->add_option("--inject-failure", run.inject_failure,
+                      "Testing: THREAD:N makes a background thread throw (mapper at keyframe N, "
+                      "loop after N keyframes, detector at pass N); the run writes its outputs "
+                      "so far and exits 1");
   run_cmd->add_flag("--save-overlays", run.save_overlays,
                     "Write annotated frames to overlays/ (points, lines, objects and decisions)");
   run_cmd
@@ -740,6 +745,9 @@ int main(int argc, char** argv) {
       return synth_command(synth_output, synth_options, quiet);
     }
   } catch (const mcslam::InputError& e) {
+    std::cerr << "mcslam: error: " << e.what() << "\n";
+    return 1;
+  } catch (const mcslam::BackgroundThreadError& e) {
     std::cerr << "mcslam: error: " << e.what() << "\n";
     return 1;
   } catch (const CLI::Error& e) {

@@ -18,6 +18,7 @@
 
 #include "mcslam/app/frame_feed.hpp"
 #include "mcslam/core/error.hpp"
+#include "mcslam/core/thread_failure.hpp"
 #include "mcslam/eval/bonn.hpp"
 #include "mcslam/eval/metrics.hpp"
 #include "mcslam/io/files.hpp"
@@ -414,6 +415,81 @@ class FrameInput {
   std::optional<FrameFeed> feed_;
 };
 
+/// `--inject-failure THREAD:N` (testing the failure path): see System::inject_failure.
+void inject_failure(slam::System& system, const std::string& spec) {
+  const std::size_t colon = spec.find(':');
+  std::int64_t at = -1;
+  if (colon != std::string::npos) {
+    try {
+      std::size_t used = 0;
+      at = std::stoll(spec.substr(colon + 1), &used);
+      if (used != spec.size() - colon - 1) at = -1;
+    } catch (const std::exception&) {
+      at = -1;
+    }
+  }
+  if (at < 0)
+    throw InputError("--inject-failure '" + spec +
+                     "': expected THREAD:N (mapper:N, loop:N or detector:N, N >= 0)");
+  system.inject_failure(spec.substr(0, colon), at);
+}
+
+/// How the frame loop ended.
+struct Streamed {
+  bool interrupted = false;
+  std::size_t done = 0;     // frames processed
+  std::size_t offered = 0;  // frames taken or dropped
+  /// What stopped the run early: a background thread's failure (BackgroundThreadError) or an
+  /// exception of the frame's own path; "" when the stream ended or was stopped.
+  std::string failure;
+};
+
+/// Feeds every frame to the system and each result to the observers, until the stream ends, a
+/// stop is requested or something fails (then the outputs so far are still written).
+Streamed stream_frames(const RunRequest& request, FrameInput& input, slam::System& system,
+                       const std::vector<FrameObserver*>& observers, RunControl* control,
+                       Viewer* viewer) {
+  Streamed out;
+  bool viewer_failure_reported = false;
+  try {
+    for (;;) {
+      if (request.stop_requested && request.stop_requested()) {
+        out.interrupted = true;
+        break;
+      }
+      if (control) {
+        // Between two frames: wait while paused, switch localisation only on or off.
+        control->wait_while_paused(request.stop_requested);
+        if (request.stop_requested && request.stop_requested()) continue;
+        if (const std::optional<bool> localize = control->take_localize_change(out.done))
+          system.set_localize(*localize);
+      }
+      if (viewer && !viewer_failure_reported && !viewer->failure().empty()) {
+        // The viewer only watches: SLAM goes on without it, and the run's exit code says so.
+        std::cerr << "mcslam: error: " << viewer->failure() << " (the run goes on without it)\n";
+        viewer_failure_reported = true;
+      }
+      std::optional<InputFrame> in = input.next(out.done);
+      if (!in) break;
+      out.offered = in->index + 1;
+      const slam::FrameResult r =
+          system.process(in->images, in->rgb_timestamp, in->depth_timestamp);
+      ++out.done;
+      FrameEvent event{r,           in->images,  system,      in->rgb_timestamp,
+                       out.done,    out.offered, in->wait_ms, in->dropped_before,
+                       std::nullopt};
+      if (request.realtime) event.latency_ms = 1000.0 * (input.now_s() - in->due_s);
+      for (FrameObserver* o : observers) o->on_frame(event);
+    }
+  } catch (const InputError&) {
+    throw;  // bad input: reported as such, before or instead of outputs
+  } catch (const std::exception& e) {
+    out.failure = e.what();
+  }
+  for (FrameObserver* o : observers) o->on_stream_end(system);
+  return out;
+}
+
 nlohmann::json run_frames(const RunRequest& request, const std::string& source_path,
                           const io::FrameSource* source, const std::vector<std::string>& warnings,
                           const StreamPlan& plan, std::size_t total, const slam::RunConfig& config,
@@ -430,6 +506,7 @@ nlohmann::json run_frames(const RunRequest& request, const std::string& source_p
     detection_description = detection_source->describe();
     system.set_detection_source(std::move(detection_source), request.wait_for_detections);
   }
+  if (request.inject_failure) inject_failure(system, *request.inject_failure);
 
   // The viewer reads the System from its own thread: it lets go before the System goes, also
   // when the run ends with an error.
@@ -464,42 +541,29 @@ nlohmann::json run_frames(const RunRequest& request, const std::string& source_p
 
   Stopwatch wall;
   FrameInput input(request, source, plan, total, system, config.camera);
-  bool interrupted = false;
-  std::size_t done = 0;
-  std::size_t offered = 0;  // frames taken or dropped so far
-  for (;;) {
-    if (request.stop_requested && request.stop_requested()) {
-      interrupted = true;
-      break;
+  const Streamed streamed = stream_frames(request, input, system, observers, control, viewer);
+  const bool interrupted = streamed.interrupted;
+  const std::size_t offered = streamed.offered;
+  std::string failure = streamed.failure;
+  if (failure.empty()) {
+    try {
+      system.finish();
+    } catch (const std::exception& e) {
+      failure = e.what();
     }
-    if (control) {
-      // Between two frames: wait while paused, switch localisation only on or off.
-      control->wait_while_paused(request.stop_requested);
-      if (request.stop_requested && request.stop_requested()) continue;
-      if (const std::optional<bool> localize = control->take_localize_change(done))
-        system.set_localize(*localize);
-    }
-    std::optional<InputFrame> in = input.next(done);
-    if (!in) break;
-    offered = in->index + 1;
-    const slam::FrameResult r = system.process(in->images, in->rgb_timestamp, in->depth_timestamp);
-    ++done;
-    FrameEvent event{r,           in->images,         system,      in->rgb_timestamp, done, offered,
-                     in->wait_ms, in->dropped_before, std::nullopt};
-    if (request.realtime) event.latency_ms = 1000.0 * (input.now_s() - in->due_s);
-    for (FrameObserver* o : observers) o->on_frame(event);
   }
-  for (FrameObserver* o : observers) o->on_stream_end(system);
-  system.finish();
   const double wall_s = wall.elapsed_ms() / 1000.0;
-  if (request.save_session) system.save_session(*request.save_session);
-  const std::size_t processed = done;
+  // A failed thread may have left the map half-changed: no session is made of it.
+  if (request.save_session && failure.empty()) system.save_session(*request.save_session);
+  const std::size_t processed = streamed.done;
 
   // Outputs.
   optim::TrajectorySmoothingReport smoothing;
   const Trajectory trajectory = system.trajectory(&smoothing);
   const Trajectory unsmoothed = system.unsmoothed_trajectory();
-  const std::string note = interrupted
+  const std::string note = !failure.empty() ? "failed after frame " + std::to_string(offered) +
+                                                  " of " + std::to_string(total) + ": " + failure
+                           : interrupted
                                ? "interrupted after frame " + std::to_string(offered) + " of " +
                                      std::to_string(total) + " (stopped on request)"
                                : std::string();
@@ -512,7 +576,8 @@ nlohmann::json run_frames(const RunRequest& request, const std::string& source_p
   io::write_file_atomic((out / "timings.csv").string(), recorder.timings_csv(request.realtime));
 
   nlohmann::json summary;
-  summary["state"] = interrupted ? "interrupted" : "complete";
+  summary["state"] = !failure.empty() ? "failed" : interrupted ? "interrupted" : "complete";
+  if (!failure.empty()) summary["failure"] = failure;
   summary["sequence"] = source_path;
   summary["camera_source"] = config.camera_source;
   if (calibration && calibration->report.confident) {
@@ -631,6 +696,8 @@ nlohmann::json run_frames(const RunRequest& request, const std::string& source_p
   summary["frames_per_second"] = running_s > 0 ? processed / running_s : 0.0;
   if (control) summary["controls"] = control->summary();
   if (viewer) summary["viewer"] = viewer->summary();
+  const std::string viewer_failure = viewer ? viewer->failure() : std::string();
+  if (!viewer_failure.empty()) summary["viewer_failure"] = viewer_failure;
   summary["peak_rss_mib"] = peak_rss_mib();
   nlohmann::json stages = nlohmann::json::object();
   for (const auto& name : recorder.stage_table.names) {
@@ -677,6 +744,9 @@ nlohmann::json run_frames(const RunRequest& request, const std::string& source_p
       if (smoothing.applied)
         summary["trajectory_smoothing"]["unsmoothed_ate_rmse_m"] =
             eval::evaluate(*groundtruth, unsmoothed).ate.translation.rmse;
+      const Trajectory online = system.online_trajectory();
+      if (!online.empty())
+        summary["online_ate_rmse_m"] = eval::evaluate(*groundtruth, online).ate.translation.rmse;
     } catch (const InputError& e) {
       summary["eval_error"] = e.what();
     }
@@ -717,7 +787,15 @@ nlohmann::json run_frames(const RunRequest& request, const std::string& source_p
     summary["passes"] = pass_rows;
   }
   io::write_file_atomic((out / "summary.json").string(), summary.dump(2) + "\n");
+  if (!failure.empty()) {
+    status.failed(failure);
+    throw BackgroundThreadError(failure + "; the outputs of the " + std::to_string(processed) +
+                                " frames before it are in " + out.string());
+  }
   status.finished(interrupted, offered);
+  if (!viewer_failure.empty())
+    throw BackgroundThreadError(viewer_failure + " (SLAM went on without it; the outputs are in " +
+                                out.string() + ")");
   return summary;
 }
 

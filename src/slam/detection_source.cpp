@@ -29,8 +29,29 @@ ModelDetectionSource::ModelDetectionSource(perception::Detector detector, int in
   worker_ = std::thread([this, niceness] {
     set_current_thread_name("mcslam-detector");
     lower_current_thread_priority(niceness);  // best effort
-    run();
+    run_guarded();
   });
+}
+
+void ModelDetectionSource::inject_failure_at(std::int64_t passes) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  fail_after_passes_ = passes;
+}
+
+void ModelDetectionSource::run_guarded() {
+  try {
+    run();
+  } catch (...) {
+    failure_.set(std::current_exception());
+    {
+      // Whoever waits for a frame's boxes is released: the frame goes on without them.
+      std::lock_guard<std::mutex> lock(mutex_);
+      job_.reset();
+      running_.reset();
+      stop_ = true;
+    }
+    cv_.notify_all();
+  }
 }
 
 ModelDetectionSource::~ModelDetectionSource() {
@@ -46,6 +67,7 @@ void ModelDetectionSource::submit(std::uint64_t frame_id, double, const cv::Mat&
                                   bool required) {
   {
     std::lock_guard<std::mutex> lock(mutex_);
+    if (stop_) return;  // the worker failed (failure()) or is stopping
     if (!required) {
       if (job_ || running_) return;  // busy: this frame is skipped
       if (last_submitted_ && frame_id < *last_submitted_ + static_cast<std::uint64_t>(interval_))
@@ -86,6 +108,11 @@ std::vector<double> ModelDetectionSource::pass_times_ms() const {
   return pass_ms_;
 }
 
+std::size_t ModelDetectionSource::pass_count() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return pass_ms_.size();
+}
+
 void ModelDetectionSource::run() {
   for (;;) {
     std::pair<std::uint64_t, cv::Mat> job;
@@ -93,6 +120,10 @@ void ModelDetectionSource::run() {
       std::unique_lock<std::mutex> lock(mutex_);
       cv_.wait(lock, [&] { return job_.has_value() || stop_; });
       if (stop_) return;
+      if (fail_after_passes_ >= 0 &&
+          static_cast<std::int64_t>(pass_ms_.size()) >= fail_after_passes_)
+        throw std::runtime_error("failure injected after " + std::to_string(pass_ms_.size()) +
+                                 " passes (--inject-failure)");
       job = std::move(*job_);
       job_.reset();
       running_ = job.first;

@@ -29,6 +29,9 @@ void LocalMapper::process(KeyFrameRequest request, StageTimes* times) {
   StageTimes local;
   Stopwatch watch;
   const map::KeyFrameId id = request.id;
+  if (fail_at_keyframe_ >= 0 && static_cast<std::int64_t>(id) == fail_at_keyframe_)
+    throw std::runtime_error("failure injected at keyframe " + std::to_string(id) +
+                             " (--inject-failure)");
   // Undistorted here, on the mapper's thread and before the map's lock, not on the frame's.
   const cv::Mat color = undistorter_ && !request.color.empty()
                             ? undistorter_->apply_rgb(request.color)
@@ -96,7 +99,15 @@ void LocalMapper::set_keyframe_listener(std::function<void(map::KeyFrameId)> lis
   listener_ = std::move(listener);
 }
 
+void LocalMapper::PendingTask::complete(std::exception_ptr e) {
+  std::lock_guard<std::mutex> guard(mutex);
+  error = std::move(e);
+  done = true;
+  cv.notify_one();
+}
+
 void LocalMapper::run_task(const std::function<void()>& task) {
+  auto pending = std::make_shared<PendingTask>();
   {
     std::unique_lock<std::mutex> lock(queue_mutex_);
     if (!thread_.joinable() || std::this_thread::get_id() == thread_.get_id()) {
@@ -104,23 +115,15 @@ void LocalMapper::run_task(const std::function<void()>& task) {
       task();
       return;
     }
-  }
-  std::mutex done_mutex;
-  std::condition_variable done_cv;
-  bool done = false;
-  {
-    std::lock_guard<std::mutex> guard(queue_mutex_);
-    tasks_.push_back([&] {
-      task();
-      std::lock_guard<std::mutex> done_guard(done_mutex);
-      done = true;
-      done_cv.notify_one();
-    });
+    failure_.throw_if_failed();
+    pending->run = task;
+    tasks_.push_back(pending);
   }
   abort_ba_ = true;
   queue_cv_.notify_one();
-  std::unique_lock<std::mutex> wait(done_mutex);
-  done_cv.wait(wait, [&] { return done; });
+  std::unique_lock<std::mutex> wait(pending->mutex);
+  pending->cv.wait(wait, [&] { return pending->done; });
+  if (pending->error) std::rethrow_exception(pending->error);
 }
 
 void LocalMapper::start(int niceness) {
@@ -130,13 +133,14 @@ void LocalMapper::start(int niceness) {
   thread_ = std::thread([this, niceness] {
     set_current_thread_name("mcslam-mapper");
     lower_current_thread_priority(niceness);  // best effort: the mapper runs either way
-    run();
+    run_guarded();
   });
 }
 
 void LocalMapper::enqueue(KeyFrameRequest request) {
   {
     std::lock_guard<std::mutex> guard(queue_mutex_);
+    if (failure_.failed()) return;  // the thread has stopped: System reports its failure
     queue_.push_back(std::move(request));
   }
   abort_ba_ = true;  // a running BA yields to the new keyframe
@@ -168,6 +172,23 @@ std::vector<StageTimes> LocalMapper::keyframe_times() const {
   return times_;
 }
 
+void LocalMapper::run_guarded() {
+  try {
+    run();
+  } catch (...) {
+    failure_.set(std::current_exception());
+    std::deque<std::shared_ptr<PendingTask>> waiting;
+    {
+      std::lock_guard<std::mutex> lock(queue_mutex_);
+      queue_.clear();
+      waiting.swap(tasks_);
+      busy_ = false;
+    }
+    idle_cv_.notify_all();
+    for (const auto& task : waiting) task->complete(failure_.exception());
+  }
+}
+
 void LocalMapper::run() {
   for (;;) {
     KeyFrameRequest request;
@@ -175,11 +196,17 @@ void LocalMapper::run() {
       std::unique_lock<std::mutex> lock(queue_mutex_);
       queue_cv_.wait(lock, [this] { return stop_ || !queue_.empty() || !tasks_.empty(); });
       if (!tasks_.empty()) {
-        std::function<void()> task = std::move(tasks_.front());
+        std::shared_ptr<PendingTask> task = std::move(tasks_.front());
         tasks_.pop_front();
         busy_ = true;
         lock.unlock();
-        task();
+        // A task's exception is its waiter's: the mapper's thread and state carry on.
+        try {
+          task->run();
+          task->complete(nullptr);
+        } catch (...) {
+          task->complete(std::current_exception());
+        }
         lock.lock();
         busy_ = false;
         idle_cv_.notify_all();
@@ -221,7 +248,15 @@ void LocalMapper::insert_keyframe(const KeyFrameRequest& request) {
   if (request.map_version < corrected_version_ && request.reference != map::kNoId)
     if (const map::KeyFrame* ref = map_.keyframe(request.reference))
       kf.T_c_w = request.T_c_ref * ref->T_c_w;
-  kf.features = request.frame.features;
+  // The keyframe keeps the features, not the grey image they came from (~300 KB at VGA, which
+  // only carries boxes from one frame to the next): the map's memory grows by what it uses.
+  if (request.frame.features && !request.frame.features->image.empty()) {
+    auto features = std::make_shared<features::FrameFeatures>(*request.frame.features);
+    features->image = cv::Mat();
+    kf.features = std::move(features);
+  } else {
+    kf.features = request.frame.features;
+  }
   kf.excluded_points = request.excluded_points;
   kf.excluded_lines = request.excluded_lines;
   if (vocabulary_) kf.bow = bag_of_words(kf);

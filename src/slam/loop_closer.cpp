@@ -66,13 +66,20 @@ void LoopCloser::start(int niceness) {
   thread_ = std::thread([this, niceness] {
     set_current_thread_name("mcslam-loop");
     lower_current_thread_priority(niceness);  // best effort
-    run();
+    try {
+      run();
+    } catch (...) {
+      failure_.set(std::current_exception());
+      std::lock_guard<std::mutex> guard(queue_mutex_);
+      queue_.clear();
+    }
   });
 }
 
 void LoopCloser::enqueue(map::KeyFrameId keyframe) {
   {
     std::lock_guard<std::mutex> guard(queue_mutex_);
+    if (failure_.failed()) return;  // the thread has stopped: System reports its failure
     queue_.push_back(keyframe);
   }
   queue_cv_.notify_one();
@@ -110,6 +117,10 @@ LoopStatistics LoopCloser::statistics() const {
 
 void LoopCloser::process(map::KeyFrameId keyframe) {
   Stopwatch watch;
+  if (fail_after_keyframes_ >= 0 &&
+      static_cast<std::int64_t>(keyframes_seen_) >= fail_after_keyframes_)
+    throw std::runtime_error("failure injected after " + std::to_string(keyframes_seen_) +
+                             " keyframes (--inject-failure)");
   const auto candidates = detect(keyframe);
   {
     std::lock_guard<std::mutex> guard(stats_mutex_);

@@ -130,6 +130,10 @@ PreparedImages System::prepare(const cv::Mat& rgb, const cv::Mat& depth) const {
     out.gray = rgb;
   out.gray = undistorter_->apply_rgb(out.gray);
   out.depth = undistorter_->apply_depth(depth);
+  // Without distortion the undistorter hands back its input: the frame keeps these images (the
+  // grey one carries boxes to the next frame), and the caller may reuse its buffers.
+  if (out.gray.data == rgb.data) out.gray = out.gray.clone();
+  if (out.depth.data == depth.data) out.depth = depth.clone();
   out.prepare_ms = watch.elapsed_ms();
   return out;
 }
@@ -179,6 +183,7 @@ FrameResult System::process(const PreparedImages& images, double timestamp,
   FrameRecord record;
   record.timestamp = timestamp;
 
+  throw_if_background_failed();
   const cv::Mat& rgb = images.rgb;
   if (!images.problem.empty() || finished_) {
     result.state = TrackingState::kLost;
@@ -242,7 +247,14 @@ FrameResult System::process(const PreparedImages& images, double timestamp,
     if (rgb.channels() == 3) outcome.keyframe->color = rgb.clone();
     if (sequential) {
       StageTimes mapper_times;
-      mapper_->process(std::move(*outcome.keyframe), &mapper_times);
+      try {
+        mapper_->process(std::move(*outcome.keyframe), &mapper_times);
+      } catch (const std::exception& e) {
+        // Inline, the mapper (and the loop closer it calls) fail in the caller's thread: named
+        // as a background thread's failure is, so that a caller handles both alike.
+        throw BackgroundThreadError(std::string("the mapper (inline, sequential) failed: ") +
+                                    e.what());
+      }
       for (auto& stage : mapper_times.stages) result.times.add(stage.first, stage.second);
     } else {
       mapper_->enqueue(std::move(*outcome.keyframe));
@@ -351,10 +363,39 @@ void System::stop_threads() {
   mapper_->finish();
 }
 
+std::string System::background_failure() const {
+  if (mapper_->failure().failed()) return mapper_->failure().message();
+  if (loop_closer_ && loop_closer_->failure().failed()) return loop_closer_->failure().message();
+  if (detections_ && detections_->failure() && detections_->failure()->failed())
+    return detections_->failure()->message();
+  return "";
+}
+
+void System::throw_if_background_failed() const {
+  const std::string failure = background_failure();
+  if (!failure.empty()) throw BackgroundThreadError(failure);
+}
+
+void System::inject_failure(const std::string& thread, std::int64_t at) {
+  if (thread == "mapper") {
+    mapper_->inject_failure_at(at);
+  } else if (thread == "loop" && loop_closer_) {
+    loop_closer_->inject_failure_at(at);
+  } else if (thread == "detector") {
+    auto* model = dynamic_cast<ModelDetectionSource*>(detections_.get());
+    if (!model) throw InputError("--inject-failure detector: the run has no detector model");
+    model->inject_failure_at(at);
+  } else {
+    throw InputError("--inject-failure: no " + thread +
+                     " thread in this run (mapper, loop with loop closing, detector with a model)");
+  }
+}
+
 void System::finish() {
   if (finished_) return;
   finished_ = true;
   stop_threads();
+  throw_if_background_failed();
   if (options_.mapper.global_ba_iterations > 0 && !options_.localize)
     mapper_->global_bundle_adjustment();
 }

@@ -67,6 +67,7 @@ class TempRootEnvironment : public testing::Environment {
 // --- running the binary ------------------------------------------------------------------------
 
 using mcslam::test::CliResult;
+using mcslam::test::contains;
 using mcslam::test::quote;
 using mcslam::test::read_file;
 using mcslam::test::write_file;
@@ -393,6 +394,33 @@ TEST(CliRun, SmoothingOffWritesTheUnsmoothedPoses) {
   const MainRun& run = main_run();
   EXPECT_EQ(read_file(out / "trajectory_unsmoothed.txt"),
             read_file(run.out / "trajectory_unsmoothed.txt"));
+}
+
+// A background thread that throws (here the mapper, made to by --inject-failure) ends the run
+// with exit 1 and a message naming it, after writing what was tracked until then.
+TEST(CliRun, AFailedMapperThreadEndsTheRunWithItsOutputsWritten) {
+  for (const char* mode : {"", " --sequential"}) {
+    const fs::path out = root() / (std::string("out_mapper_failure") + (*mode ? "_seq" : ""));
+    const CliResult r = run_cli("run " + quote(main_sequence().string()) + " --output " +
+                                quote(out.string()) + mode + " --inject-failure mapper:2 -q");
+    EXPECT_EQ(r.exit_code, 1) << r;
+    EXPECT_FALSE(r.crashed) << r;
+    EXPECT_TRUE(contains(r.err, "failure injected at keyframe 2")) << r;
+    EXPECT_TRUE(contains(r.err, "the outputs of the")) << r;
+    const std::vector<double> poses = timestamps_of(out / "trajectory.txt");
+    EXPECT_FALSE(poses.empty());
+    EXPECT_FALSE(timestamps_of(out / "trajectory_online.txt").empty());
+    EXPECT_TRUE(contains(read_file(out / "trajectory.txt"), "# failed after frame"));
+    const nlohmann::json summary = read_json(out / "summary.json");
+    EXPECT_EQ(summary["state"], "failed");
+    EXPECT_TRUE(contains(summary["failure"].get<std::string>(), "mapper")) << summary["failure"];
+    EXPECT_EQ(read_json(out / "status.json")["state"], "failed");
+  }
+  const CliResult bad =
+      run_cli("run " + quote(main_sequence().string()) + " --output " +
+              quote((root() / "out_bad_inject").string()) + " --inject-failure mapper -q");
+  EXPECT_EQ(bad.exit_code, 1) << bad;
+  EXPECT_TRUE(contains(bad.err, "expected THREAD:N")) << bad;
 }
 
 TEST(CliRun, FirstFrameStartsTheRunThere) {

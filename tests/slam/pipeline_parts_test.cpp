@@ -3,7 +3,9 @@
 #include <gtest/gtest.h>
 
 #include <numbers>
+#include <stdexcept>
 
+#include "mcslam/core/thread_failure.hpp"
 #include "mcslam/map/correction.hpp"
 #include "pipeline.hpp"
 
@@ -59,6 +61,38 @@ TEST(Tracker, ACorrectionOfTheWholeMapMovesNoStaticLandmarkOut) {
   EXPECT_EQ(moved_landmarks, 0);
   EXPECT_GE(p.map.num_points(), points_before / 2);  // ordinary culling only
   EXPECT_LT(worst, 0.01);
+}
+
+// A task run on the mapper's thread hands its exception to its waiter, and the mapper goes on;
+// once the thread itself has failed, keyframes are dropped and tasks get its failure at once
+// instead of waiting for a thread that no longer runs.
+TEST(LocalMapper, ExceptionsGoToWhoeverWaitsAndAFailedThreadReleasesItsWaiters) {
+  const auto& seq = test::rendered_sequence(40, false);
+  Pipeline p(seq);
+  p.mapper.start();
+  EXPECT_THROW(p.mapper.run_task([] { throw std::out_of_range("a task's .at()"); }),
+               std::out_of_range);
+  int ran = 0;
+  p.mapper.run_task([&] { ++ran; });
+  EXPECT_EQ(ran, 1);
+  EXPECT_FALSE(p.mapper.failure().failed());
+
+  // The first keyframe request throws on the mapper's thread.
+  p.mapper.inject_failure_at(0);
+  std::optional<KeyFrameRequest> first;
+  for (int i = 0; i < 5 && !first; ++i) {
+    TrackingOutcome out = p.track(i, /*hold=*/true);
+    if (out.keyframe) first = std::move(out.keyframe);
+  }
+  ASSERT_TRUE(first.has_value());
+  first->id = 0;
+  p.mapper.enqueue(std::move(*first));
+  p.mapper.wait_idle();
+  ASSERT_TRUE(p.mapper.failure().failed());
+  EXPECT_NE(p.mapper.failure().message().find("failure injected at keyframe 0"), std::string::npos);
+  EXPECT_THROW(p.mapper.run_task([&] { ++ran; }), BackgroundThreadError);
+  EXPECT_EQ(ran, 1);
+  p.mapper.finish();
 }
 
 // The mapper fuses a landmark into another while a keyframe request that uses it waits in its

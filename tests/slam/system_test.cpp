@@ -6,9 +6,11 @@
 #include <atomic>
 #include <cmath>
 #include <cstdio>
+#include <opencv2/imgproc.hpp>
 #include <thread>
 
 #include "mcslam/core/error.hpp"
+#include "mcslam/core/thread_failure.hpp"
 #include "mcslam/eval/metrics.hpp"
 #include "synthetic_fixture.hpp"
 
@@ -165,6 +167,77 @@ TEST(System, TrajectoryMayBeReadFromAnotherThreadWhileFramesAreProcessed) {
   EXPECT_EQ(system.trajectory().size(), 60u);
   const SolverStatistics solver = system.solver_statistics();
   EXPECT_EQ(solver.pose_failures + solver.bundle_adjustment_failures, 0);
+}
+
+// A background thread that throws ends neither the process nor the caller's thread: the next
+// process() (or finish()) throws BackgroundThreadError naming it, and what was tracked before
+// stays readable (the CLI writes it: cli_test).
+TEST(System, AMapperThreadThatThrowsIsReportedByTheNextFrame) {
+  const auto& seq = test::rendered_sequence(60, false);
+  SystemOptions options;
+  options.sequential = false;
+  System system(seq.camera, options);
+  system.inject_failure("mapper", 2);
+  std::string failure;
+  int processed = 0;
+  try {
+    for (int i = 0; i < 60; ++i, ++processed)
+      system.process(seq.frames[i].rgb, seq.frames[i].depth, seq.groundtruth[i].timestamp);
+    system.finish();
+  } catch (const BackgroundThreadError& e) {
+    failure = e.what();
+  }
+  EXPECT_NE(failure.find("the mapper (mcslam-mapper) thread failed"), std::string::npos) << failure;
+  EXPECT_NE(failure.find("failure injected at keyframe 2"), std::string::npos) << failure;
+  EXPECT_NE(system.background_failure().find("mapper"), std::string::npos);
+  EXPECT_GT(processed, 0);
+  EXPECT_LT(processed, 60);
+  EXPECT_EQ(static_cast<int>(system.online_trajectory().size()), processed);
+  EXPECT_FALSE(system.trajectory().empty());
+  EXPECT_THROW(system.finish(), BackgroundThreadError);  // stops the threads, says it again
+}
+
+TEST(System, AnUnknownThreadToInjectIntoIsAnInputError) {
+  const auto& seq = test::rendered_sequence(3, false);
+  System system(seq.camera, sequential_options());
+  EXPECT_THROW(system.inject_failure("tracker", 1), InputError);
+  EXPECT_THROW(system.inject_failure("detector", 1), InputError);  // no model in this run
+}
+
+// process() may be handed a grey image in a buffer the caller reuses: the frame keeps its own
+// copy (the next frame's boxes are carried by the optical flow from it).
+TEST(System, ACallersGreyBufferMayBeReused) {
+  const auto& seq = test::rendered_sequence(30, false);
+  PinholeCamera camera = seq.camera;
+  camera.distortion = {0, 0, 0, 0, 0};
+  std::vector<cv::Mat> grey;
+  for (const auto& f : seq.frames) {
+    cv::Mat g;
+    cv::cvtColor(f.rgb, g, cv::COLOR_BGR2GRAY);
+    grey.push_back(g);
+  }
+  System fresh(camera, sequential_options());
+  System reusing(camera, sequential_options());
+  cv::Mat buffer(grey[0].size(), CV_8UC1);
+  cv::Mat depth_buffer(grey[0].size(), CV_32FC1);
+  for (std::size_t i = 0; i < grey.size(); ++i) {
+    const double t = seq.groundtruth[i].timestamp;
+    const FrameResult a = fresh.process(grey[i].clone(), seq.frames[i].depth.clone(), t);
+    grey[i].copyTo(buffer);
+    seq.frames[i].depth.copyTo(depth_buffer);
+    const FrameResult b = reusing.process(buffer, depth_buffer, t);
+    ASSERT_TRUE(b.frame_features);
+    EXPECT_NE(b.frame_features->image.data, buffer.data) << i;
+    buffer.setTo(0);  // the caller writes its next image
+    depth_buffer.setTo(0);
+    ASSERT_EQ(a.T_w_c.has_value(), b.T_w_c.has_value()) << i;
+  }
+  fresh.finish();
+  reusing.finish();
+  const Trajectory ta = fresh.trajectory(), tb = reusing.trajectory();
+  ASSERT_EQ(ta.size(), tb.size());
+  for (std::size_t i = 0; i < ta.size(); ++i)
+    EXPECT_LT((ta[i].T_w_c.translation() - tb[i].T_w_c.translation()).norm(), 1e-9) << i;
 }
 
 TEST(System, SequentialModeIsDeterministic) {

@@ -84,6 +84,9 @@ struct RunRequest {
   std::optional<std::string> save_session;
   std::optional<std::string> load_session;
   bool localize = false;
+  /// Testing the failure path: "THREAD:N" makes a background thread throw (System::inject_failure;
+  /// the run then ends with BackgroundThreadError after writing its outputs so far).
+  std::optional<std::string> inject_failure;
   /// Also write overlays/<frame>.jpg: annotated frames as in the paper's Fig. 7.
   bool save_overlays = false;
   /// Play the sequence this many times in a row as one stream (a soak run): pass k's timestamps

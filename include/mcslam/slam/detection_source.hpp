@@ -18,6 +18,7 @@
 #include <thread>
 #include <vector>
 
+#include "mcslam/core/thread_failure.hpp"
 #include "mcslam/perception/detection.hpp"
 #include "mcslam/perception/detector.hpp"
 
@@ -46,6 +47,11 @@ class DetectionSource {
   /// The time (ms) of every forward pass run so far, in order (none for a file): the detector's
   /// actual rate is their count over the run's wall time.
   virtual std::vector<double> pass_times_ms() const { return {}; }
+  /// How many forward passes have run so far (pass_times_ms().size(), without the copy).
+  virtual std::size_t pass_count() const { return 0; }
+  /// The failure of the source's own thread (none for a file): once it threw, no more boxes
+  /// come and System reports it (BackgroundThreadError).
+  virtual const ThreadFailure* failure() const { return nullptr; }
 };
 
 /// Boxes read from a detections file, looked up by timestamp. A frame whose timestamp is not in
@@ -80,9 +86,15 @@ class ModelDetectionSource final : public DetectionSource {
   std::optional<TimedDetections> collect(std::uint64_t frame_id, bool wait) override;
   std::string describe() const override;
   std::vector<double> pass_times_ms() const override;
+  std::size_t pass_count() const override;
+  const ThreadFailure* failure() const override { return &failure_; }
+  /// Testing the failure path: the forward pass after this many throws std::runtime_error
+  /// (`mcslam run --inject-failure detector:N`). -1: never.
+  void inject_failure_at(std::int64_t passes);
 
  private:
   void run();
+  void run_guarded();
 
   perception::Detector detector_;
   mutable std::mutex mutex_;
@@ -94,6 +106,8 @@ class ModelDetectionSource final : public DetectionSource {
   std::optional<std::uint64_t> last_submitted_;
   int interval_ = 1;
   bool stop_ = false;
+  std::int64_t fail_after_passes_ = -1;
+  ThreadFailure failure_{"detector (mcslam-detector)"};
   std::thread worker_;
 };
 

@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "mcslam/core/camera.hpp"
+#include "mcslam/core/thread_failure.hpp"
 #include "mcslam/core/timing.hpp"
 #include "mcslam/io/undistort.hpp"
 #include "mcslam/map/correction.hpp"
@@ -47,7 +48,9 @@ class LocalMapper {
   /// Called on the mapper's thread after each keyframe is processed (loop detection).
   void set_keyframe_listener(std::function<void(map::KeyFrameId)> listener);
   /// Runs `task` on the mapper's thread between two keyframes and waits for it (inline when
-  /// the mapper has no thread). Tasks may write the map: the mapper is then its writer.
+  /// the mapper has no thread). Tasks may write the map: the mapper is then its writer. What the
+  /// task throws is thrown here; so is the mapper's failure when its thread has failed (the
+  /// task then does not run).
   void run_task(const std::function<void()>& task);
   /// Corrects the map for a verified loop (see LoopCloser). Mapper's thread only (run_task).
   /// Returns false, with event.reason, when the loop can no longer be applied.
@@ -64,6 +67,12 @@ class LocalMapper {
   void enqueue(KeyFrameRequest request);
   /// Waits until the queue is empty and the thread has stopped.
   void finish();
+  /// The thread's failure: once its body threw, the mapper processes nothing more (keyframes
+  /// enqueued after it are dropped, waiting tasks get the failure) and this holds the exception.
+  const ThreadFailure& failure() const { return failure_; }
+  /// Testing the failure path: processing the keyframe of this request id throws
+  /// std::runtime_error (`mcslam run --inject-failure mapper:N`). -1: never.
+  void inject_failure_at(std::int64_t keyframe) { fail_at_keyframe_ = keyframe; }
   bool idle() const;
   /// Waits until the queue is empty and nothing is running (threaded mode; returns at once
   /// otherwise).
@@ -122,7 +131,20 @@ class LocalMapper {
   std::condition_variable queue_cv_;
   std::condition_variable idle_cv_;
   std::deque<KeyFrameRequest> queue_;
-  std::deque<std::function<void()>> tasks_;
+  /// A task waiting for the mapper's thread; its waiter sleeps on `done`.
+  struct PendingTask {
+    std::function<void()> run;
+    std::mutex mutex;
+    std::condition_variable cv;
+    bool done = false;
+    std::exception_ptr error;
+    void complete(std::exception_ptr e);
+  };
+  std::deque<std::shared_ptr<PendingTask>> tasks_;
+  /// The thread body that catches: a failure is kept, the queue dropped, the waiters released.
+  void run_guarded();
+  ThreadFailure failure_{"mapper (mcslam-mapper)"};
+  std::int64_t fail_at_keyframe_ = -1;
   bool stop_ = false;
   bool busy_ = false;
   std::atomic<bool> abort_ba_{false};

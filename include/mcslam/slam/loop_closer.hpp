@@ -30,6 +30,7 @@
 
 #include "mcslam/core/camera.hpp"
 #include "mcslam/core/se3.hpp"
+#include "mcslam/core/thread_failure.hpp"
 #include "mcslam/core/timing.hpp"
 #include "mcslam/map/map.hpp"
 #include "mcslam/place/vocabulary.hpp"
@@ -104,6 +105,11 @@ class LoopCloser {
   void enqueue(map::KeyFrameId keyframe);
   /// Processes what is queued (a running full bundle adjustment is stopped), then stops.
   void finish();
+  /// The thread's failure: once its body threw, keyframes are no longer searched for loops.
+  const ThreadFailure& failure() const { return failure_; }
+  /// Testing the failure path: the search after this many keyframes throws
+  /// std::runtime_error (`mcslam run --inject-failure loop:N`). -1: never.
+  void inject_failure_at(std::int64_t keyframes) { fail_after_keyframes_ = keyframes; }
 
   LoopStatistics statistics() const;
 
@@ -138,6 +144,8 @@ class LoopCloser {
   bool stop_ = false;
   std::atomic<bool> abort_ba_{false};
   std::thread thread_;
+  ThreadFailure failure_{"loop closer (mcslam-loop)"};
+  std::int64_t fail_after_keyframes_ = -1;
 
   mutable std::mutex stats_mutex_;
   LoopStatistics stats_;

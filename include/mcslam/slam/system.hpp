@@ -14,6 +14,11 @@
 // thread gets its own copy), so a caller may reuse its buffers as soon as process() returns.
 // The destructor stops the background threads without the final global bundle adjustment:
 // call finish() for it.
+//
+// Failures. When a background thread (mapper, loop closer, detector) throws, it stops its own
+// work and keeps the exception; the next process() or finish() throws BackgroundThreadError
+// naming the thread and the exception. What was made until then stays readable (trajectory(),
+// online_trajectory(), the map), so that a caller can write its outputs before it gives up.
 
 #include <atomic>
 #include <memory>
@@ -162,8 +167,15 @@ class System {
   /// The colour image as the features see it (undistorted), for drawing.
   cv::Mat undistort(const cv::Mat& rgb) const;
 
-  /// Lets the mapper finish its queue. Call before reading the final trajectory.
+  /// Lets the mapper finish its queue. Call before reading the final trajectory. Throws
+  /// BackgroundThreadError (after stopping the threads, without the final bundle adjustment)
+  /// when a background thread has failed.
   void finish();
+  /// The first failure of a background thread, "" while none has failed. Any thread.
+  std::string background_failure() const;
+  /// Testing the failure path (`mcslam run --inject-failure THREAD:N`): "mapper" throws while
+  /// processing keyframe N, "loop" when searching after N keyframes, "detector" at pass N.
+  void inject_failure(const std::string& thread, std::int64_t at);
 
   /// Tracked frames, each placed relative to its reference keyframe's final (refined) pose,
   /// positions smoothed as options().trajectory says (optim::smooth_trajectory); `report`, when
@@ -251,6 +263,8 @@ class System {
   std::vector<FrameRecord> records() const;
   /// Lets the mapper and the loop closer finish their queues and stops their threads.
   void stop_threads();
+  /// Throws BackgroundThreadError when a background thread has failed.
+  void throw_if_background_failed() const;
   std::vector<FrameMotion::MovingRegion> expected_moving_regions(double timestamp) const;
 
   std::vector<FrameMotion::MovingRegion> moving_regions_;
