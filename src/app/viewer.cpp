@@ -11,11 +11,19 @@
 #include "mcslam/app/run.hpp"
 #include "mcslam/core/data_files.hpp"
 #include "mcslam/core/error.hpp"
+#include "mcslam/core/worker.hpp"
 
 namespace mcslam::app {
 namespace {
 
 constexpr std::size_t kRecent = 120;  // tracking times in the rolling plot
+
+/// Passes per second between the oldest and the newest sample.
+double detector_rate_hz(const std::vector<std::pair<double, std::size_t>>& samples) {
+  if (samples.size() < 2) return 0.0;
+  const double dt = samples.back().first - samples.front().first;
+  return dt > 0.0 ? static_cast<double>(samples.back().second - samples.front().second) / dt : 0.0;
+}
 
 /// The binary messages: one byte of type, three of padding, then the body.
 enum : std::uint8_t { kFrameMessage = 1, kMapMessage = 2 };
@@ -102,7 +110,10 @@ Viewer::Viewer(const ViewerOptions& options, RunControl& control, std::string se
   sequence_ = std::move(sequence);
   if (groundtruth) groundtruth_ = *groundtruth;
   server_->publish(ViewerChannel::kHello, hello_json(), false);
-  thread_ = std::thread([this] { loop(); });
+  thread_ = std::thread([this] {
+    set_current_thread_name("mcslam-view");
+    loop_guarded();
+  });
 }
 
 Viewer::~Viewer() {
@@ -168,9 +179,13 @@ void Viewer::on_frame(const FrameEvent& e) {
   frame_s_.push_back(now);
   if (frame_s_.size() > 30) frame_s_.erase(frame_s_.begin());
   if (tracking_ms_.size() > kRecent) tracking_ms_.erase(tracking_ms_.begin());
-  if (r.detections_fresh) fresh_detection_s_.push_back(now);
-  while (!fresh_detection_s_.empty() && fresh_detection_s_.front() < now - 3.0)
-    fresh_detection_s_.erase(fresh_detection_s_.begin());
+  // The detector's passes, whichever frame used their boxes (a threaded run uses boxes a few
+  // frames old: counting the frames with boxes of their own would show no pass at all).
+  if (const slam::DetectionSource* source = e.system.detection_source()) {
+    detector_passes_.emplace_back(now, source->pass_count());
+    while (detector_passes_.size() > 2 && detector_passes_.front().first < now - 3.0)
+      detector_passes_.erase(detector_passes_.begin());
+  }
   box_age_ = r.detections_used ? r.detections_age : -1;
   objects_ = static_cast<int>(r.objects.size());
   dynamic_objects_ = constrained_objects_ = 0;
@@ -239,7 +254,6 @@ void Viewer::on_message(const std::string& text) {
 }
 
 std::string Viewer::stats_json() {
-  const double now = wall_.elapsed_ms() / 1000.0;
   nlohmann::json j = {{"type", "stats"},
                       {"frame", frame_id_},
                       {"timestamp", timestamp_},
@@ -251,8 +265,7 @@ std::string Viewer::stats_json() {
                                   : 0.0},
                       {"tracking_ms", tracking_ms_.empty() ? 0.0 : tracking_ms_.back()},
                       {"tracking_recent", tracking_ms_},
-                      {"detector_hz", static_cast<double>(fresh_detection_s_.size()) /
-                                          std::min(3.0, std::max(now, 1e-3))},
+                      {"detector_hz", detector_rate_hz(detector_passes_)},
                       {"box_age", box_age_},
                       {"objects", objects_},
                       {"dynamic_objects", dynamic_objects_},
@@ -370,6 +383,19 @@ void Viewer::send_frame(const PendingFrame& frame, const slam::System& system) {
   append_bytes(out, &id, 4);
   append_bytes(out, jpeg.data(), jpeg.size());
   server_->publish(ViewerChannel::kFrame, std::move(out), true);
+}
+
+void Viewer::loop_guarded() {
+  try {
+    loop();
+  } catch (...) {
+    failure_.set(std::current_exception());
+  }
+}
+
+std::string Viewer::failure() const {
+  if (failure_.failed()) return failure_.message();
+  return server_->failure();
 }
 
 void Viewer::loop() {

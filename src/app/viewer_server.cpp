@@ -7,12 +7,15 @@
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
 #include <boost/beast/websocket.hpp>
+#include <cctype>
 #include <chrono>
 #include <mutex>
 #include <set>
 #include <thread>
 
 #include "mcslam/core/error.hpp"
+#include "mcslam/core/thread_failure.hpp"
+#include "mcslam/core/worker.hpp"
 
 namespace mcslam::app {
 namespace {
@@ -34,12 +37,49 @@ std::chrono::milliseconds to_ms(double seconds) {
   return std::chrono::milliseconds(static_cast<long long>(seconds * 1000.0));
 }
 
+/// The host part of a Host header: "[::1]:8765" -> "::1", "localhost:8765" -> "localhost".
+std::string host_name(const std::string& host) {
+  if (!host.empty() && host.front() == '[') {
+    const std::size_t end = host.find(']');
+    return end == std::string::npos ? std::string() : host.substr(1, end - 1);
+  }
+  const std::size_t colon = host.find(':');
+  if (colon != std::string::npos && host.find(':', colon + 1) != std::string::npos)
+    return host;  // a bare IPv6 address (not valid in a Host header, judged as it is)
+  return host.substr(0, colon);
+}
+
+std::string lower(std::string s) {
+  for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return s;
+}
+
 }  // namespace
+
+bool viewer_host_allowed(const std::string& host, const std::string& bind) {
+  const std::string name = lower(host_name(host));
+  if (name.empty()) return false;
+  if (name == "localhost" || name == "127.0.0.1" || name == "::1" || name == lower(bind))
+    return true;
+  // Bound to every address: reached by whatever address the machine has. An IP literal cannot
+  // be rebound by a foreign DNS name, so any is accepted; names other than localhost are not.
+  beast::error_code ec;
+  const net::ip::address bound = net::ip::make_address(bind, ec);
+  if (ec || !bound.is_unspecified()) return false;
+  net::ip::make_address(name, ec);
+  return !ec;
+}
+
+bool viewer_origin_allowed(const std::string& origin, const std::string& host) {
+  return origin.empty() || lower(origin) == "http://" + lower(host);
+}
 
 std::optional<std::string> ViewerServerOptions::check() const {
   if (port < 0 || port > 65535) return "port: must be 0..65535, got " + std::to_string(port);
   if (max_message_bytes < 16) return "max_message_bytes: must be at least 16";
   if (max_clients < 1) return "max_clients: must be at least 1";
+  if (max_connections < max_clients + 1)
+    return "max_connections: must exceed max_clients (a page is loaded beside its WebSocket)";
   if (!(write_timeout_s > 0.0)) return "write_timeout_s: must be positive";
   if (!(handshake_timeout_s > 0.0)) return "handshake_timeout_s: must be positive";
   return std::nullopt;
@@ -51,11 +91,18 @@ struct ViewerServer::Impl {
   ViewerServerOptions options;
   std::map<std::string, ServedFile> files;
   MessageHandler on_message;
+  // The server thread's counts of its sessions (declared before the io_context, whose
+  // destruction may end the last sessions).
+  std::size_t open_connections = 0;  // HTTP sessions and WebSockets alive
+  std::size_t pending_handshakes = 0;
   net::io_context ioc{1};
   tcp::acceptor acceptor{ioc};
   net::steady_timer watchdog{ioc};
+  net::steady_timer accept_backoff{ioc};
+  std::chrono::milliseconds backoff{0};
   // Touched on the server's thread only.
   std::set<std::shared_ptr<WsSession>> sessions;
+  ThreadFailure failure{"viewer server (mcslam-viewer)"};
   std::array<MessagePtr, kViewerChannels> latest;
   mutable std::mutex stats_mutex;
   ViewerServerStats stats;
@@ -77,7 +124,14 @@ struct ViewerServer::Impl {
 class WsSession : public std::enable_shared_from_this<WsSession> {
  public:
   WsSession(beast::tcp_stream stream, ViewerServer::Impl& server)
-      : ws_(std::move(stream)), server_(server) {}
+      : ws_(std::move(stream)), server_(server) {
+    ++server_.open_connections;
+    ++server_.pending_handshakes;
+  }
+  ~WsSession() {
+    --server_.open_connections;
+    if (handshaking_) --server_.pending_handshakes;
+  }
 
   void accept(http::request<http::string_body> request) {
     request_ = std::move(request);  // kept for as long as the handshake may read it
@@ -91,6 +145,8 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
     ws_.set_option(websocket::stream_base::decorator(
         [](websocket::response_type& response) { response.set(http::field::server, "mcslam"); }));
     ws_.async_accept(request_, [self = shared_from_this()](beast::error_code ec) {
+      self->handshaking_ = false;
+      --self->server_.pending_handshakes;
       if (ec) return;  // a failed handshake: the connection goes
       self->server_.add(self);
       self->read();
@@ -162,6 +218,7 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
   std::array<MessagePtr, kViewerChannels> pending_;
   MessagePtr in_flight_;
   bool writing_ = false;
+  bool handshaking_ = true;
   Clock::time_point write_started_;
 };
 
@@ -169,7 +226,10 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
 class HttpSession : public std::enable_shared_from_this<HttpSession> {
  public:
   HttpSession(tcp::socket socket, ViewerServer::Impl& server)
-      : stream_(std::move(socket)), server_(server) {}
+      : stream_(std::move(socket)), server_(server) {
+    ++server_.open_connections;
+  }
+  ~HttpSession() { --server_.open_connections; }
 
   void read() {
     parser_.emplace();
@@ -197,11 +257,24 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     http::request<http::string_body> request = parser_->release();
     std::string target(request.target());
     target = target.substr(0, target.find('?'));
+    const std::string host(request[http::field::host]);
+    if (!viewer_host_allowed(host, server_.options.bind)) {
+      server_.count([](ViewerServerStats& s) { ++s.refused; });
+      respond(http::status::forbidden, "forbidden: this viewer answers to localhost only\n",
+              "text/plain", request.version(), false, false);
+      return;
+    }
     if (websocket::is_upgrade(request)) {
       if (target != "/ws") {
         respond(http::status::not_found, "not found\n", "text/plain", request.version(), false,
                 false);
-      } else if (server_.sessions.size() >= server_.options.max_clients) {
+      } else if (!viewer_origin_allowed(std::string(request[http::field::origin]), host)) {
+        server_.count([](ViewerServerStats& s) { ++s.refused; });
+        respond(http::status::forbidden, "forbidden: a page of another origin\n", "text/plain",
+                request.version(), false, false);
+      } else if (server_.sessions.size() + server_.pending_handshakes >=
+                 server_.options.max_clients) {
+        server_.count([](ViewerServerStats& s) { ++s.over_limit; });
         respond(http::status::service_unavailable, "too many viewers\n", "text/plain",
                 request.version(), false, false);
       } else {
@@ -265,7 +338,26 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
 void ViewerServer::Impl::accept() {
   acceptor.async_accept([this](beast::error_code ec, tcp::socket socket) {
     if (ec == net::error::operation_aborted || !acceptor.is_open()) return;
-    if (!ec) std::make_shared<HttpSession>(std::move(socket), *this)->read();
+    if (ec) {
+      // A persistent error (EMFILE: no file descriptor left) would fail again at once: wait,
+      // 10 ms doubling to 1 s while it lasts, before accepting again.
+      count([](ViewerServerStats& s) { ++s.accept_errors; });
+      backoff = std::min(std::chrono::milliseconds(1000),
+                         std::max(std::chrono::milliseconds(10), 2 * backoff));
+      accept_backoff.expires_after(backoff);
+      accept_backoff.async_wait([this](beast::error_code wait_ec) {
+        if (!wait_ec) accept();
+      });
+      return;
+    }
+    backoff = std::chrono::milliseconds(0);
+    if (open_connections >= options.max_connections) {
+      count([](ViewerServerStats& s) { ++s.over_limit; });
+      beast::error_code close_ec;
+      socket.close(close_ec);
+    } else {
+      std::make_shared<HttpSession>(std::move(socket), *this)->read();
+    }
     accept();
   });
 }
@@ -325,7 +417,15 @@ ViewerServer::ViewerServer(const ViewerServerOptions& options,
   impl_->port = acceptor.local_endpoint().port();
   impl_->accept();
   impl_->watch();
-  impl_->thread = std::thread([impl = impl_.get()] { impl->ioc.run(); });
+  impl_->thread = std::thread([impl = impl_.get()] {
+    set_current_thread_name("mcslam-viewer");
+    try {
+      impl->ioc.run();
+    } catch (...) {
+      // A handler threw: the server stops serving; the run goes on and reports it.
+      impl->failure.set(std::current_exception());
+    }
+  });
 }
 
 ViewerServer::~ViewerServer() {
@@ -333,6 +433,7 @@ ViewerServer::~ViewerServer() {
     beast::error_code ec;
     impl->acceptor.close(ec);
     impl->watchdog.cancel();
+    impl->accept_backoff.cancel();
     for (const auto& session : impl->sessions) session->drop();
     impl->sessions.clear();
     impl->ioc.stop();
@@ -343,12 +444,15 @@ ViewerServer::~ViewerServer() {
 int ViewerServer::port() const { return impl_->port; }
 
 void ViewerServer::publish(ViewerChannel channel, std::string payload, bool binary) {
+  if (impl_->failure.failed()) return;  // nothing runs the posted work any more
   auto message = std::make_shared<const Message>(Message{std::move(payload), binary});
   net::post(impl_->ioc, [impl = impl_.get(), channel, message] {
     impl->latest[static_cast<std::size_t>(channel)] = message;
     for (const auto& session : impl->sessions) session->offer(channel, message);
   });
 }
+
+std::string ViewerServer::failure() const { return impl_->failure.message(); }
 
 ViewerServerStats ViewerServer::stats() const {
   std::lock_guard<std::mutex> lock(impl_->stats_mutex);

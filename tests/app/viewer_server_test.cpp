@@ -101,15 +101,22 @@ std::string client_frame(std::uint8_t opcode, const std::string& payload, bool m
   return f + payload;
 }
 
-/// Opens a WebSocket on `s`; true when the server switched protocols.
-bool handshake(Socket& s, const std::string& path = "/ws") {
-  s.send("GET " + path +
-         " HTTP/1.1\r\nHost: 127.0.0.1\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+/// Sends a WebSocket upgrade on `s` (with `headers`, each ending in CRLF, after the Host line)
+/// and returns the reply's status line and headers.
+std::string upgrade(Socket& s, const std::string& path, const std::string& host,
+                    const std::string& headers = "") {
+  s.send("GET " + path + " HTTP/1.1\r\nHost: " + host + "\r\n" + headers +
+         "Upgrade: websocket\r\nConnection: Upgrade\r\n"
          "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n\r\n");
   const std::string reply = s.receive(3000, "\r\n\r\n");
   const std::size_t end = reply.find("\r\n\r\n");
   if (end != std::string::npos) s.leftover = reply.substr(end + 4);
-  return reply.rfind("HTTP/1.1 101", 0) == 0;
+  return reply;
+}
+
+/// Opens a WebSocket on `s`; true when the server switched protocols.
+bool handshake(Socket& s, const std::string& path = "/ws") {
+  return upgrade(s, path, "127.0.0.1").rfind("HTTP/1.1 101", 0) == 0;
 }
 
 struct Fixture {
@@ -288,6 +295,101 @@ TEST(ViewerServer, AClientThatNeverReadsNeitherBlocksPublishNorOthers) {
   EXPECT_GT(f.server->stats().messages_dropped, 0u);  // newest wins
   f.server->publish(ViewerChannel::kStats, "still-here", false);
   EXPECT_NE(reader.receive(5000, "still-here").find("still-here"), std::string::npos);
+}
+
+TEST(ViewerServer, AForeignOriginOrHostIsRefused) {
+  // A page of another site may open a WebSocket to 127.0.0.1 (browsers apply no same-origin
+  // policy to them), and DNS rebinding reaches the HTTP side under a name of its own.
+  Fixture f;
+  const int port = f.server->port();
+  const std::string own = "127.0.0.1:" + std::to_string(port);
+  {
+    Socket s(port);
+    EXPECT_EQ(upgrade(s, "/ws", own, "Origin: http://evil.example\r\n").rfind("HTTP/1.1 403", 0),
+              0u);
+  }
+  {
+    Socket s(port);  // the same host on another port is another origin
+    EXPECT_EQ(upgrade(s, "/ws", own, "Origin: http://127.0.0.1:9999\r\n").rfind("HTTP/1.1 403", 0),
+              0u);
+  }
+  {
+    Socket s(port);
+    EXPECT_EQ(upgrade(s, "/ws", "evil.example:" + std::to_string(port)).rfind("HTTP/1.1 403", 0),
+              0u);
+  }
+  {
+    Socket s(port);
+    s.send("GET / HTTP/1.1\r\nHost: evil.example\r\nConnection: close\r\n\r\n");
+    const std::string reply = s.receive(3000);
+    EXPECT_EQ(reply.rfind("HTTP/1.1 403", 0), 0u) << reply;
+    EXPECT_EQ(reply.find("<p>page</p>"), std::string::npos);
+  }
+  {
+    Socket s(port);  // HTTP/1.0 without a Host: a browser always sends one
+    s.send("GET / HTTP/1.0\r\n\r\n");
+    const std::string reply = s.receive(3000);
+    EXPECT_EQ(reply.rfind("HTTP/1.0 403", 0), 0u) << reply;
+  }
+  EXPECT_EQ(f.server->stats().refused, 5u);
+  EXPECT_EQ(f.server->stats().connections, 0u);
+  // The viewer's own page: its origin, under the names of this machine.
+  for (const std::string& host : {own, "localhost:" + std::to_string(port)}) {
+    Socket s(port);
+    EXPECT_EQ(upgrade(s, "/ws", host, "Origin: http://" + host + "\r\n").rfind("HTTP/1.1 101", 0),
+              0u)
+        << host;
+  }
+  Socket no_origin(port);  // a client that is not a browser sends none
+  EXPECT_TRUE(handshake(no_origin));
+}
+
+TEST(ViewerServer, HostNamesAllowedByTheBoundAddress) {
+  EXPECT_TRUE(viewer_host_allowed("127.0.0.1:8765", "127.0.0.1"));
+  EXPECT_TRUE(viewer_host_allowed("LOCALHOST:8765", "127.0.0.1"));
+  EXPECT_TRUE(viewer_host_allowed("[::1]:8765", "::1"));
+  EXPECT_TRUE(viewer_host_allowed("192.168.1.5:8765", "192.168.1.5"));
+  EXPECT_FALSE(viewer_host_allowed("192.168.1.6:8765", "192.168.1.5"));
+  EXPECT_FALSE(viewer_host_allowed("", "127.0.0.1"));
+  EXPECT_FALSE(viewer_host_allowed("robot.example:8765", "127.0.0.1"));
+  // Bound to every address: any IP literal (a rebound name is never one), no other name.
+  EXPECT_TRUE(viewer_host_allowed("10.0.0.7:8765", "0.0.0.0"));
+  EXPECT_TRUE(viewer_host_allowed("[fe80::1]:8765", "::"));
+  EXPECT_FALSE(viewer_host_allowed("evil.example:8765", "0.0.0.0"));
+  EXPECT_TRUE(viewer_origin_allowed("", "127.0.0.1:8765"));
+  EXPECT_TRUE(viewer_origin_allowed("http://127.0.0.1:8765", "127.0.0.1:8765"));
+  EXPECT_FALSE(viewer_origin_allowed("https://127.0.0.1:8765", "127.0.0.1:8765"));
+  EXPECT_FALSE(viewer_origin_allowed("null", "127.0.0.1:8765"));
+}
+
+TEST(ViewerServer, ConnectionsBeyondTheLimitsAreRefused) {
+  ViewerServerOptions options;
+  options.max_clients = 2;
+  options.max_connections = 4;
+  Fixture f(options);
+  const int port = f.server->port();
+  // Handshakes in progress count against max_clients: two upgrades sent, a third refused
+  // before either has finished being counted as a client.
+  std::vector<std::unique_ptr<Socket>> clients;
+  for (int k = 0; k < 2; ++k) {
+    clients.push_back(std::make_unique<Socket>(port));
+    ASSERT_TRUE(handshake(*clients.back()));
+  }
+  {
+    Socket third(port);
+    EXPECT_EQ(upgrade(third, "/ws", "127.0.0.1").rfind("HTTP/1.1 503", 0), 0u);
+  }
+  // Plain connections that send nothing count against max_connections: with 2 WebSockets and
+  // 2 idle connections open, the next one is closed at once.
+  Socket idle1(port), idle2(port);
+  ASSERT_TRUE(f.wait_for([&] {
+    Socket probe(port);
+    probe.receive(500);
+    return probe.closed() && f.server->stats().over_limit >= 2;
+  }));
+  clients.clear();  // the WebSockets go: room again
+  ASSERT_TRUE(f.wait_for([&] { return f.server->stats().clients == 0; }));
+  EXPECT_NE(get(port, "GET / HTTP/1.1").find("<p>page</p>"), std::string::npos);
 }
 
 TEST(ViewerServer, APortInUseOrABadAddressIsAnInputError) {

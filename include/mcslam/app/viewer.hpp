@@ -20,6 +20,7 @@
 #include "mcslam/app/frame_observer.hpp"
 #include "mcslam/app/run_control.hpp"
 #include "mcslam/app/viewer_server.hpp"
+#include "mcslam/core/thread_failure.hpp"
 #include "mcslam/core/timing.hpp"
 #include "mcslam/io/trajectory_io.hpp"
 
@@ -55,6 +56,9 @@ class Viewer : public FrameObserver {
   void detach();
   /// summary.json "viewer".
   nlohmann::json summary() const;
+  /// The failure of the viewer's thread or its server's ("" while both run): the viewer then
+  /// shows nothing more, the run goes on.
+  std::string failure() const;
 
  private:
   struct PendingFrame {
@@ -62,6 +66,7 @@ class Viewer : public FrameObserver {
     cv::Mat rgb;
   };
   void loop();
+  void loop_guarded();
   void on_message(const std::string& text);
   std::string stats_json();                       // under mutex_
   std::string map_message(slam::System& system);  // under system_mutex_
@@ -84,9 +89,10 @@ class Viewer : public FrameObserver {
   std::uint64_t frame_id_ = 0;
   double timestamp_ = 0.0;
   std::string state_ = "waiting";
-  std::vector<double> tracking_ms_;        // newest last, at most kRecent
-  std::vector<double> frame_s_;            // wall times of the last frames (the live rate)
-  std::vector<double> fresh_detection_s_;  // wall times of fresh detections (last few s)
+  std::vector<double> tracking_ms_;  // newest last, at most kRecent
+  std::vector<double> frame_s_;      // wall times of the last frames (the live rate)
+  /// (wall time, the detector's passes so far) over the last few seconds: its rate.
+  std::vector<std::pair<double, std::size_t>> detector_passes_;
   int box_age_ = -1, objects_ = 0, dynamic_objects_ = 0, constrained_objects_ = 0;
   std::size_t keyframes_ = 0;
   std::vector<float> trajectory_;  // x, y, z of each tracked frame
@@ -103,6 +109,7 @@ class Viewer : public FrameObserver {
 
   std::mutex system_mutex_;  // guards system_ (the thread reads the map through it)
   slam::System* system_ = nullptr;
+  ThreadFailure failure_{"viewer (mcslam-viewer)"};
   std::thread thread_;
 };
 

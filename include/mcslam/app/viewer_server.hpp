@@ -7,6 +7,12 @@
 // it is ready, and what it missed is dropped. publish() never waits for a client; a client whose
 // write has stalled for write_timeout_s is disconnected. Text messages from clients (at most
 // max_message_bytes; a longer one closes the connection) go to the message handler.
+//
+// Who may connect. Browsers let any web page open a WebSocket to 127.0.0.1, and DNS rebinding
+// lets a page reach the HTTP side under a name of its own. So a request is answered only when
+// its Host is this machine's loopback name or address, the bound address, or (bound to every
+// address) any IP literal; and a WebSocket upgrade only when it carries no Origin or the origin
+// of the viewer's own page (http://<Host>). Anything else gets 403.
 
 #include <cstddef>
 #include <functional>
@@ -17,13 +23,22 @@
 
 namespace mcslam::app {
 
+/// Whether a request's Host header names this server (see the header comment); `bind` is the
+/// address listened on. Exposed for tests.
+bool viewer_host_allowed(const std::string& host, const std::string& bind);
+/// Whether a WebSocket upgrade's Origin (absent: empty) is the viewer's own page for `host`.
+bool viewer_origin_allowed(const std::string& origin, const std::string& host);
+
 struct ViewerServerOptions {
   /// The address to listen on: loopback by default; anything else exposes the run.
   std::string bind = "127.0.0.1";
   /// The TCP port (0: any free port, see ViewerServer::port()).
   int port = 8765;
   std::size_t max_message_bytes = 4096;  ///< from a client
-  std::size_t max_clients = 16;
+  std::size_t max_clients = 16;          ///< WebSocket clients, handshakes in progress included
+  /// Open TCP connections of any kind (HTTP requests, handshakes, WebSockets); one more is
+  /// closed as soon as it is accepted.
+  std::size_t max_connections = 64;
   double write_timeout_s = 5.0;       ///< a client that takes longer to take a message is dropped
   double handshake_timeout_s = 10.0;  ///< for the HTTP request and the WebSocket handshake
   std::optional<std::string> check() const;
@@ -46,6 +61,9 @@ struct ViewerServerStats {
   std::size_t messages_sent = 0;     ///< to all clients
   std::size_t messages_dropped = 0;  ///< replaced by a newer one before a client took them
   std::size_t clients_dropped = 0;   ///< disconnected for a stalled write or a bad message
+  std::size_t refused = 0;           ///< requests answered 403 (foreign Host or Origin)
+  std::size_t over_limit = 0;        ///< connections closed or answered 503 for a limit
+  std::size_t accept_errors = 0;     ///< failed accepts (each followed by a back-off)
 };
 
 class ViewerServer {
@@ -67,6 +85,8 @@ class ViewerServer {
   /// message of each channel when they connect. Thread-safe; never blocks on a client.
   void publish(ViewerChannel channel, std::string payload, bool binary);
   ViewerServerStats stats() const;
+  /// The server thread's failure ("" while it runs): an exception out of a handler stops it.
+  std::string failure() const;
 
   struct Impl;  // the server's internals (viewer_server.cpp)
 
