@@ -44,15 +44,7 @@ std::optional<std::string> BenchRequest::check() const {
   if (jobs != 1)
     return "--jobs: only with --executor local (Slurm runs the tasks; --array-limit caps how "
            "many run at once)";
-  if (!std::filesystem::path(output_dir).is_absolute())
-    return "--output " + output_dir +
-           ": with --executor slurm the output folder must be an absolute path, on a file "
-           "system that the cluster's nodes share: the tasks write their runs into it from "
-           "the nodes and the collect job reads them there";
-  if (output_dir.find_first_of(" \t\n'\"") != std::string::npos)
-    return "--output " + output_dir +
-           ": with --executor slurm the folder's path must not hold spaces or quotes (it goes "
-           "into #SBATCH lines)";
+  if (auto e = bench::check_slurm_folder(output_dir)) return "--output " + *e;
   return slurm.check();
 }
 
@@ -430,6 +422,7 @@ SubmitOutcome submit_bench(const BenchRequest& request) {
   if (auto e = request.check()) throw InputError(*e);
   const SlurmTools tools = slurm_tools("--executor slurm");
   const std::string exe = executable_for(request.executable);
+  const BenchFolderLock lock(request.output_dir);
   Prepared p = prepare(request);
   if (p.runs.empty())
     throw InputError(
@@ -448,7 +441,11 @@ SubmitOutcome resubmit_failed(const std::string& dir, const SlurmOptions& slurm)
     throw InputError("--resubmit-failed " + dir +
                      ": give the bench folder as an absolute path (the cluster's nodes use it)");
   if (auto e = slurm.check()) throw InputError(*e);
+  if (auto e = check_slurm_folder(dir)) throw InputError("--resubmit-failed " + *e);
   const SlurmTools tools = slurm_tools("--resubmit-failed");
+  // Held from the check of what still runs to the new submission: a second bench command on
+  // the folder waits, then sees this one's jobs.
+  const BenchFolderLock lock(dir);
   PlanFiles plan = read_plan_files(dir);
   for (const PlannedRun& run : plan.runs)
     if (!fs::path(run.output()).is_absolute())
@@ -460,17 +457,38 @@ SubmitOutcome resubmit_failed(const std::string& dir, const SlurmOptions& slurm)
   const std::vector<int> candidates = unfinished(records_of(dir, plan));
   const TaskStates states = query_states(dir, read_submissions(dir), candidates, tools);
   std::vector<int> tasks;
+  std::vector<std::string> unknown;  // submitted, but Slurm tells nothing of them
+  std::size_t active = 0;
   for (int t : candidates) {
     const auto it = states.by_task.find(t);
-    if (it == states.by_task.end() || !still_active(it->second.state)) tasks.push_back(t);
+    if (it == states.by_task.end()) {
+      tasks.push_back(t);  // never submitted
+    } else if (it->second.state.empty()) {
+      // sacct and squeue failed or do not list it (yet): it may be queued or running, and a
+      // duplicate would remove its run folder. Not resubmitted.
+      unknown.push_back(it->second.job);
+    } else if (still_active(it->second.state)) {
+      ++active;
+    } else {
+      tasks.push_back(t);
+    }
   }
   SubmitOutcome outcome;
-  const std::size_t active = candidates.size() - tasks.size();
-  const std::string busy =
+  std::string busy =
       active ? std::to_string(active) + " run(s) still queued or running; " : std::string();
+  if (!unknown.empty()) {
+    std::string jobs;
+    for (const std::string& j : unknown) jobs += (jobs.empty() ? "" : ", ") + j;
+    busy += std::to_string(unknown.size()) + " run(s) whose state Slurm does not tell (" + jobs +
+            (states.sacct_note.empty() ? "" : "; " + states.sacct_note) +
+            "; squeue does not list them): they may still be queued or running, so they are "
+            "not resubmitted (once they have surely ended, scancel them or check their "
+            "slurm/task-*.out, and try again); ";
+  }
   if (tasks.empty()) {
     outcome.message = "mcslam bench: nothing to resubmit: " + busy +
-                      (active ? "the others have" : "every run has") + " a result\n";
+                      (active || !unknown.empty() ? "the others have" : "every run has") +
+                      " a result\n";
     return outcome;
   }
   plan.settings.slurm = merged(plan.settings.slurm, slurm);

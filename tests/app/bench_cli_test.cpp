@@ -279,8 +279,8 @@ TEST(BenchCli, SlurmExecutorThroughFakeSlurmCommands) {
   EXPECT_TRUE(contains(r.out, "squeue --jobs=41,42"));
   EXPECT_TRUE(contains(r.out, "sacct --jobs=41"));
   const std::string script = read_file(fs::path(out) / "slurm/runs-1.sbatch");
-  EXPECT_TRUE(contains(script, "#SBATCH --array=0-1\n#SBATCH --output=" + out +
-                                   "/slurm/task-%A_%a.out\n#SBATCH --partition=short\n"
+  EXPECT_TRUE(contains(script, "#SBATCH --array=0-1\n#SBATCH --output=\"" + out +
+                                   "/slurm/task-%A_%a.out\"\n#SBATCH --partition=short\n"
                                    "#SBATCH --time=5\n"))
       << script;
 
@@ -337,7 +337,9 @@ TEST(BenchCli, SlurmBadInputGetsOneClearError) {
   const std::vector<std::tuple<std::string, std::string, std::string>> cases = {
       {none, data + " --executor slurm --output " + quote(out), "no sbatch on PATH"},
       {fake, data + " --executor slurm --output out",
-       "--output out: with --executor slurm the output folder must be an absolute path"},
+       "--output out: with --executor slurm the bench folder must be an absolute path"},
+      {fake, data + " --executor slurm --output " + quote(out + " %x"),
+       "must not hold white space, quotes"},
       {fake, data + " --executor slurm --partition nope --output " + quote(out),
        "sbatch rejected " + out +
            "/slurm/runs-1.sbatch: sbatch: error: invalid partition "

@@ -171,7 +171,7 @@ TEST(BenchRequest, ChecksOptionsOfEachExecutor) {
   EXPECT_TRUE(contains(r.check().value_or(""), "--jobs: only with --executor local"));
   r.jobs = 1;
   EXPECT_TRUE(contains(r.check().value_or(""),
-                       "--output out: with --executor slurm the output "
+                       "--output out: with --executor slurm the bench "
                        "folder must be an absolute path"));
   EXPECT_TRUE(contains(r.check().value_or(""), "nodes share"));
   r.output_dir = "/shared/bench";
@@ -209,7 +209,7 @@ TEST(BenchSlurm, ScriptsSayWhatTheyRun) {
   const std::string runs = runs_script(in);
   EXPECT_EQ(runs.rfind("#!/bin/bash\n", 0), 0u);
   for (const char* line :
-       {"#SBATCH --array=0-2,5%4\n", "#SBATCH --output=/shared/b/slurm/task-%A_%a.out\n",
+       {"#SBATCH --array=0-2,5%4\n", "#SBATCH --output=\"/shared/b/slurm/task-%A_%a.out\"\n",
         "#SBATCH --partition=gpu\n", "#SBATCH --time=30\n", "#SBATCH --cpus-per-task=2\n",
         "#SBATCH --mem=4G\n",
         "exec '/opt/mcslam/bin/mcslam' bench --run-task '/shared/b' \"$SLURM_ARRAY_TASK_ID\"\n"})
@@ -277,6 +277,67 @@ TEST(BenchSlurm, RejectedSubmissionsAndNoSbatchAreClearErrors) {
   ASSERT_EQ(read_submissions(b).size(), 1u);
   dir.write("b/slurm/jobs.tsv", "1\tx\t\t0\tnow\n");
   expect_input_error([&] { read_submissions(b); }, {b + "/slurm/jobs.tsv:1: "});
+}
+
+TEST(BenchSlurm, FoldersThatBreakTheJobScriptsAreRefusedBySubmit) {
+  // Slurm expands %x, %u, ... in --output, and white space or quotes break the #SBATCH lines:
+  // submit() refuses such a folder whoever calls it (the first submission or a resubmission).
+  for (const char* dir : {"/shared/my bench", "/shared/b%x", "/shared/new\nline", "/shared/q'uote",
+                          "/shared/d$HOME", "relative/b"}) {
+    EXPECT_TRUE(check_slurm_folder(dir).has_value()) << dir;
+    expect_input_error([&] { submit(dir, "/x/mcslam", SlurmTools::from_path(""), {}, {0}); },
+                       {"bench folder"});
+  }
+  EXPECT_FALSE(check_slurm_folder("/shared/bench-2026_12.01"));
+}
+
+TEST(BenchSlurm, TwoCommandsOnOneFolderTakeTurns) {
+  TempDir dir("bench_lock");
+  const std::string b = dir.file("b");
+  fs::create_directories(b);
+  {
+    const BenchFolderLock first(b);
+    expect_input_error([&] { BenchFolderLock second(b, 0.2); },
+                       {"another mcslam bench command", b + "/slurm/.lock"});
+  }
+  const BenchFolderLock again(b, 0.2);  // released with the first
+}
+
+// A task that was submitted but that sacct and squeue do not list (they failed, or the
+// controller has not listed it yet) may be running: a duplicate would remove its run folder.
+TEST(BenchSlurm, ResubmissionLeavesTasksWhoseStateIsUnknown) {
+  TempDir dir("bench_resubmit");
+  const std::string b = dir.file("b");
+  PlanFiles plan;
+  plan.settings = two_sequences();
+  plan.settings.executor = BenchExecutor::kSlurm;
+  plan.runs = {planned("room_a", "points", Mode::kSequential, 1),
+               planned("room_b", "points", Mode::kSequential, 1)};
+  fs::create_directories(b);
+  write_plan_files(b, plan);
+  dir.write("b/slurm/jobs.tsv", "1\t42\t43\t0-1\tt\n");
+  fake_command(dir, "sbatch",
+               "echo \"$@\" >> \"$(dirname \"$0\")/calls.txt\"\n"
+               "case \"$2\" in *collect*) echo 51;; *) echo 50;; esac\n");
+  fake_command(dir, "sacct", "echo 'sacct: error: slurmdbd: connection refused' >&2; exit 1\n");
+  fake_command(dir, "squeue", "exit 1\n");
+  const char* old_path = std::getenv("PATH");
+  const std::string saved = old_path ? old_path : "";
+  setenv("PATH", (dir.file("bin") + ":" + saved).c_str(), 1);
+  SubmitOutcome outcome = resubmit_failed(b, {});
+  EXPECT_EQ(outcome.tasks, 0);
+  EXPECT_TRUE(contains(outcome.message, "2 run(s) whose state Slurm does not tell (42_0, 42_1"))
+      << outcome.message;
+  EXPECT_TRUE(contains(outcome.message, "connection refused")) << outcome.message;
+  EXPECT_FALSE(fs::exists(dir.file("bin/calls.txt")));  // nothing submitted
+
+  // sacct answers: task 0 still runs, task 1 failed: only task 1 goes again.
+  fake_command(dir, "sacct", "echo '42_0|RUNNING'; echo '42_1|FAILED'\n");
+  outcome = resubmit_failed(b, {});
+  setenv("PATH", saved.c_str(), 1);
+  EXPECT_EQ(outcome.tasks, 1) << outcome.message;
+  EXPECT_TRUE(contains(outcome.message, "1 run(s) still queued or running")) << outcome.message;
+  EXPECT_TRUE(contains(test::read_file(dir / "b/slurm/runs-2.sbatch"), "#SBATCH --array=1\n"));
 }
 
 TEST(BenchSlurm, StatesFromSacctSqueueAndTheTaskOutput) {

@@ -1,12 +1,17 @@
 #include "mcslam/app/bench/slurm.hpp"
 
+#include <fcntl.h>
+#include <sys/file.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
+#include <chrono>
 #include <filesystem>
 #include <fstream>
 #include <set>
 #include <sstream>
+#include <thread>
 
 #include "mcslam/app/bench/process.hpp"
 #include "mcslam/app/bench/task.hpp"
@@ -292,7 +297,7 @@ std::string runs_script(const ScriptInput& in) {
     << "#SBATCH --job-name=mcslam-bench\n"
     << "#SBATCH --array=" << task_list(in.tasks)
     << (in.options.array_limit > 0 ? "%" + std::to_string(in.options.array_limit) : "") << "\n"
-    << "#SBATCH --output=" << slurm_dir(in.dir) << "/task-%A_%a.out\n"
+    << "#SBATCH --output=\"" << slurm_dir(in.dir) << "/task-%A_%a.out\"\n"
     << common_directives(in.options) << "exec " << shell_quote(in.executable)
     << " bench --run-task " << shell_quote(in.dir) << " \"$SLURM_ARRAY_TASK_ID\"\n";
   return s.str();
@@ -307,14 +312,53 @@ std::string collect_script(const ScriptInput& in) {
        "# and write results.md, results.json, runs.csv and report.html into the bench folder.\n"
     << "#SBATCH --job-name=mcslam-bench-collect\n"
     << "#SBATCH --dependency=afterany:" << in.array_job << "\n"
-    << "#SBATCH --output=" << slurm_dir(in.dir) << "/collect-%j.out\n"
+    << "#SBATCH --output=\"" << slurm_dir(in.dir) << "/collect-%j.out\"\n"
     << common_directives(in.options) << "exec " << shell_quote(in.executable) << " bench --collect "
     << shell_quote(in.dir) << " --quiet\n";
   return s.str();
 }
 
+std::optional<std::string> check_slurm_folder(const std::string& dir) {
+  if (!fs::path(dir).is_absolute())
+    return dir +
+           ": with --executor slurm the bench folder must be an absolute path, on a file "
+           "system that the cluster's nodes share: the tasks write their runs into it from "
+           "the nodes and the collect job reads them there";
+  if (dir.find_first_of(" \t\n\r'\"\\$`%") != std::string::npos)
+    return dir +
+           ": with --executor slurm the bench folder's path must not hold white space, quotes, "
+           "backslashes, '$', '`' or '%' (it goes into #SBATCH lines, where Slurm expands %)";
+  return std::nullopt;
+}
+
+BenchFolderLock::BenchFolderLock(const std::string& dir, double wait_s) {
+  io::ensure_directory(slurm_dir(dir));
+  const std::string path = slurm_dir(dir) + "/.lock";
+  fd_ = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+  if (fd_ < 0) throw InputError(file_error(path, "cannot open the bench folder's lock"));
+  const auto until = std::chrono::steady_clock::now() +
+                     std::chrono::milliseconds(static_cast<long long>(wait_s * 1000.0));
+  while (::flock(fd_, LOCK_EX | LOCK_NB) != 0) {
+    if (errno != EWOULDBLOCK && errno != EINTR) {
+      ::close(fd_);
+      throw InputError(file_error(path, "cannot lock the bench folder"));
+    }
+    if (std::chrono::steady_clock::now() >= until) {
+      ::close(fd_);
+      throw InputError(dir + ": another mcslam bench command is submitting into this folder " +
+                       "(it holds " + path + "); try again when it has finished");
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+}
+
+BenchFolderLock::~BenchFolderLock() {
+  if (fd_ >= 0) ::close(fd_);  // closing releases the lock
+}
+
 Submission submit(const std::string& dir, const std::string& executable, const SlurmTools& tools,
                   const SlurmOptions& options, const std::vector<int>& tasks) {
+  if (auto e = check_slurm_folder(dir)) throw InputError(*e);
   if (tools.sbatch.empty()) throw InputError("no sbatch on PATH");
   io::ensure_directory(slurm_dir(dir));
   ScriptInput in{dir, executable, options, 1, tasks, ""};

@@ -62,10 +62,29 @@ std::string runs_script(const ScriptInput& in);
 /// The collect job's batch script, to start after the array (afterany).
 std::string collect_script(const ScriptInput& in);
 
-/// Writes the scripts, submits the array, then the collect job, and appends the submission to
-/// jobs.tsv. InputError quoting sbatch when it rejects a script (nothing is then submitted, or,
-/// when only the collect job is rejected, the array stays submitted and the message says how
-/// to collect by hand).
+/// The problem with `dir` as a bench folder for Slurm, nullopt when it can be one: an absolute
+/// path (the nodes use it) without white space, quotes, backslashes, '$', '`' or '%' (it goes
+/// into #SBATCH lines and the job scripts, where Slurm expands %x, %u, ... in --output).
+std::optional<std::string> check_slurm_folder(const std::string& dir);
+
+/// An exclusive lock on a bench folder (DIR/slurm/.lock, flock) for as long as it lives, so that
+/// two bench commands never submit into one folder at once (jobs.tsv, the script numbers, the
+/// check of what still runs). Waits up to `wait_s` for another holder, then InputError.
+class BenchFolderLock {
+ public:
+  explicit BenchFolderLock(const std::string& dir, double wait_s = 30.0);
+  ~BenchFolderLock();
+  BenchFolderLock(const BenchFolderLock&) = delete;
+  BenchFolderLock& operator=(const BenchFolderLock&) = delete;
+
+ private:
+  int fd_ = -1;
+};
+
+/// Checks `dir` (check_slurm_folder), writes the scripts, submits the array, then the collect job,
+/// and appends the submission to jobs.tsv. InputError quoting sbatch when it rejects a script
+/// (nothing is then submitted, or, when only the collect job is rejected, the array stays submitted
+/// and the message says how to collect by hand).
 Submission submit(const std::string& dir, const std::string& executable, const SlurmTools& tools,
                   const SlurmOptions& options, const std::vector<int>& tasks);
 
