@@ -33,6 +33,7 @@ nlohmann::json published_json(const SequenceResult& result) {
   nlohmann::json rows = nlohmann::json::array();
   for (const PublishedRow& row : result.published) {
     const auto ours = our_figure(result, row.compares_with);
+    const auto online = our_online_figure(result, row.compares_with);
     nlohmann::json values = nlohmann::json::array();
     for (const auto& [method, v] : row.values) values.push_back({method, v});
     rows.push_back({{"table", row.table},
@@ -40,6 +41,7 @@ nlohmann::json published_json(const SequenceResult& result) {
                     {"source", row.source},
                     {"ours_config", ours ? nlohmann::json(ours->first) : nlohmann::json(nullptr)},
                     {"ours", ours ? nlohmann::json(ours->second) : nlohmann::json(nullptr)},
+                    {"ours_online", online ? nlohmann::json(*online) : nlohmann::json(nullptr)},
                     {"values", values}});
   }
   return rows;

@@ -243,6 +243,8 @@ export function publishedTables(seq, ctx) {
       .map(([method, value]) => ({ method: text(method), value, ours: false }));
     const oursName = entry.ours_config ? ctx.config(entry.ours_config).label || entry.ours_config : 'ours';
     values.push({ method: `mcslam, ${oursName}`, value: entry.ours, ours: true });
+    // The ATE of the poses given at the time, beside that of the unsmoothed final poses.
+    if (isNum(entry.ours_online)) values.push({ method: `mcslam online, ${oursName}`, value: entry.ours_online, ours: true });
     const numeric = values.filter((v) => isNum(v.value)).map((v) => v.value);
     const max = numeric.length ? Math.max(...numeric.map(Math.abs)) : 0;
     const best = numeric.length > 1 ? (higherBetter ? Math.max : Math.min)(...numeric) : null;

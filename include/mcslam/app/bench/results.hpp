@@ -30,6 +30,8 @@ struct RunRecord {
   std::optional<double> ate_rmse_m, rpe_trans_m, rpe_rot_deg;  ///< need ground truth
   /// ATE of the trajectory before its positions were smoothed (summary.json).
   std::optional<double> unsmoothed_ate_rmse_m;
+  /// ATE of the poses tracking gave at the time (trajectory_online.txt; summary.json).
+  std::optional<double> online_ate_rmse_m;
   std::optional<double> tracked_ratio, fps, tracking_ms, dynamics_ms;
   /// Place recognition: keyframes in the map, loops verified and accepted, median ms of loop
   /// detection per keyframe and of the relocalisation database query, relocalisations.
@@ -66,6 +68,7 @@ struct ConfigResult {
   /// runs (likewise).
   std::optional<Spread> ate, ate_threaded, rpe_trans, rpe_rot_deg, tracked, fps, tracking_ms;
   std::optional<Spread> ate_unsmoothed;  ///< the accuracy runs' ATE before smoothing
+  std::optional<Spread> ate_online;      ///< the accuracy runs' ATE of the online poses
   std::optional<double> dynamics_ms;     ///< mean per frame, speed runs
   /// Place recognition (all runs): medians of RunRecord's figures.
   std::optional<Spread> keyframes, loops_verified, loops_accepted, loop_detection_ms,
@@ -104,9 +107,14 @@ struct BenchMeta {
 };
 
 /// Our figure for a published row: the last configuration that has one (the full system when
-/// it ran); nullopt when none has.
+/// it ran); nullopt when none has. Like with like: other systems publish the poses of each
+/// frame as tracked and refined, never smoothed over the run, so an ATE is that of
+/// trajectory_unsmoothed.txt (trajectory.txt where no smoothing was applied).
 std::optional<std::pair<std::string, double>> our_figure(const SequenceResult& sequence,
                                                          Metric metric);
+/// The ATE of the online poses (what `process()` returned at the time) of the configuration
+/// our_figure chose for an ATE row; nullopt for other rows or without it.
+std::optional<double> our_online_figure(const SequenceResult& sequence, Metric metric);
 
 /// The tables, as printed and saved in results.md.
 std::string markdown(const BenchMeta& meta, const std::vector<SequenceResult>& sequences);
