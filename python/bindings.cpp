@@ -10,6 +10,9 @@
 #include <pybind11/stl.h>
 
 #include <cstring>
+#include <memory>
+#include <mutex>
+#include <optional>
 #include <string>
 
 #include "mcslam/mcslam.hpp"
@@ -125,6 +128,23 @@ py::array image_array(const cv::Mat& m) {
   return out;
 }
 
+using Api = mcslam::System;
+
+/// The System behind Python's System, with the lock that serialises the calls of several
+/// Python threads on it (see the class's binding).
+struct LockedSystem {
+  explicit LockedSystem(const mcslam::Settings& settings) : system(settings) {}
+  /// Calls a reader without the GIL (its copy can take a while). The readers may run beside
+  /// process() (System's thread rules), so they do not take the lock.
+  template <typename R>
+  R read(R (Api::*reader)() const) const {
+    py::gil_scoped_release release;
+    return (system.*reader)();
+  }
+  mcslam::System system;
+  mutable std::mutex mutex;
+};
+
 }  // namespace
 
 PYBIND11_MODULE(_mcslam, m) {
@@ -200,30 +220,47 @@ PYBIND11_MODULE(_mcslam, m) {
                (r.keyframe ? ", keyframe" : "") + ")";
       });
 
-  py::class_<mcslam::System>(m, "_System")
-      .def(py::init<const mcslam::Settings&>(), py::arg("settings"))
+  // A System is driven by one thread at a time: process() and finish() run without the GIL,
+  // so two Python threads could otherwise enter it at once. Each call takes the object's lock
+  // (after letting the GIL go, so that a waiting thread does not hold up the interpreter).
+  py::class_<LockedSystem>(m, "_System")
+      .def(py::init([](const mcslam::Settings& settings) {
+             py::gil_scoped_release release;  // the vocabulary and the model load meanwhile
+             return std::make_unique<LockedSystem>(settings);
+           }),
+           py::arg("settings"))
       .def(
           "process",
-          [](mcslam::System& s, const py::object& rgb, const py::object& depth, double timestamp,
+          [](LockedSystem& s, const py::object& rgb, const py::object& depth, double timestamp,
              std::optional<double> depth_timestamp, bool rgb_order) {
             const cv::Mat colour = colour_image(rgb, rgb_order);
             const cv::Mat d = depth_image(depth);
             py::gil_scoped_release release;
-            return s.process(colour, d, timestamp, depth_timestamp);
+            std::lock_guard<std::mutex> lock(s.mutex);
+            return s.system.process(colour, d, timestamp, depth_timestamp);
           },
           py::arg("rgb"), py::arg("depth"), py::arg("timestamp"),
           py::arg("depth_timestamp") = py::none(), py::arg("rgb_order") = false)
-      .def("finish", &mcslam::System::finish, py::call_guard<py::gil_scoped_release>())
-      .def("trajectory", [](const mcslam::System& s) { return trajectory_array(s.trajectory()); })
+      .def("finish",
+           [](LockedSystem& s) {
+             py::gil_scoped_release release;
+             std::lock_guard<std::mutex> lock(s.mutex);
+             s.system.finish();
+           })
+      .def("trajectory",
+           [](const LockedSystem& s) { return trajectory_array(s.read(&Api::trajectory)); })
       .def("unsmoothed_trajectory",
-           [](const mcslam::System& s) { return trajectory_array(s.unsmoothed_trajectory()); })
-      .def("keyframe_trajectory",
-           [](const mcslam::System& s) { return trajectory_array(s.keyframe_trajectory()); })
+           [](const LockedSystem& s) {
+             return trajectory_array(s.read(&Api::unsmoothed_trajectory));
+           })
+      .def(
+          "keyframe_trajectory",
+          [](const LockedSystem& s) { return trajectory_array(s.read(&Api::keyframe_trajectory)); })
       .def("online_trajectory",
-           [](const mcslam::System& s) { return trajectory_array(s.online_trajectory()); })
+           [](const LockedSystem& s) { return trajectory_array(s.read(&Api::online_trajectory)); })
       .def("map",
-           [](const mcslam::System& s) {
-             const mcslam::MapSnapshot snap = s.map();
+           [](const LockedSystem& s) {
+             const mcslam::MapSnapshot snap = s.read(&Api::map);
              py::array_t<double> points(
                  {static_cast<py::ssize_t>(snap.points.size()), static_cast<py::ssize_t>(3)});
              auto p = points.mutable_unchecked<2>();
@@ -249,11 +286,22 @@ PYBIND11_MODULE(_mcslam, m) {
              out["keyframes"] = trajectory_array(snap.keyframes);
              return out;
            })
-      .def("save_session", &mcslam::System::save_session, py::arg("path"))
-      .def_property_readonly("settings", &mcslam::System::settings);
+      .def(
+          "save_session",
+          [](LockedSystem& s, const std::string& path) {
+            py::gil_scoped_release release;
+            std::lock_guard<std::mutex> lock(s.mutex);
+            s.system.save_session(path);
+          },
+          py::arg("path"))
+      .def_property_readonly("settings", [](const LockedSystem& s) { return s.system.settings(); });
 
   py::class_<mcslam::Sequence>(m, "Sequence", "A TUM-layout RGB-D folder")
-      .def(py::init(&mcslam::Sequence::open), py::arg("directory"), py::arg("associations") = "")
+      .def(py::init([](const std::string& directory, const std::string& associations) {
+             py::gil_scoped_release release;
+             return mcslam::Sequence::open(directory, associations);
+           }),
+           py::arg("directory"), py::arg("associations") = "")
       .def_property_readonly("directory", &mcslam::Sequence::directory)
       .def("__len__", &mcslam::Sequence::size)
       .def_property_readonly("timestamps",
@@ -266,7 +314,11 @@ PYBIND11_MODULE(_mcslam, m) {
       .def(
           "load",
           [](const mcslam::Sequence& s, std::size_t index, double depth_factor) {
-            const mcslam::Sequence::Frame f = s.load(index, depth_factor);
+            mcslam::Sequence::Frame f;
+            {
+              py::gil_scoped_release release;  // reading and decoding two images
+              f = s.load(index, depth_factor);
+            }
             return py::make_tuple(image_array(f.rgb), image_array(f.depth), f.timestamp,
                                   f.depth_timestamp);
           },

@@ -49,6 +49,10 @@ __all__ = [
 
 
 def _yaml_value(value):
+    # numpy scalars (np.int64(1500), np.float32, np.bool_) as the Python numbers they hold:
+    # repr() of them is "np.int64(1500)" with numpy >= 2.
+    if hasattr(value, "item") and hasattr(value, "dtype") and getattr(value, "ndim", 1) == 0:
+        value = value.item()
     if isinstance(value, bool):
         return "true" if value else "false"
     if isinstance(value, (list, tuple)):

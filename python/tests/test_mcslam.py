@@ -200,3 +200,39 @@ def test_detections_as_the_detector_option(mcslam_exe, synth_sequence, tmp_path)
     mcslam.run(synth_sequence, detections=boxes, max_frames=5,
                progress=lambda k, frame: objects.append(frame.objects))
     assert sum(objects) > 0
+
+
+def test_numpy_scalars_as_settings(synth_sequence):
+    # numpy >= 2 prints np.int64(1500) for repr(): the settings take the number it holds.
+    s = mcslam.make_settings(synth_sequence, {"orb.num_features": np.int64(1500),
+                                              "orb.scale_factor": np.float32(1.25),
+                                              "system.sequential": np.bool_(True)})
+    assert "num_features: 1500" in s.to_yaml()
+    assert "scale_factor: 1.25" in s.to_yaml()
+    assert s.sequential
+
+
+def test_two_threads_on_one_system_are_serialised(synth_sequence):
+    # process() runs without the GIL: two Python threads driving one System take turns on its
+    # lock, and every call gets its own frame (ids 0..n-1, none twice).
+    import threading
+    seq = mcslam.Sequence(synth_sequence)
+    system = mcslam.System(synth_sequence, sequential=True, vocabulary="")
+    rgb, depth, t, _ = seq.load(0, system.camera.depth_factor)
+    ids, errors = [], []
+
+    def drive(k):
+        try:
+            for i in range(12):
+                ids.append(system.process(rgb, depth, t + 0.001 * (2 * i + k)).frame_id)
+        except Exception as e:  # noqa: BLE001 - reported below
+            errors.append(e)
+
+    threads = [threading.Thread(target=drive, args=(k,)) for k in range(2)]
+    for th in threads:
+        th.start()
+    for th in threads:
+        th.join()
+    system.finish()
+    assert not errors
+    assert sorted(ids) == list(range(24))

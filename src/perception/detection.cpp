@@ -51,6 +51,16 @@ Detection parse_detection(const json& d, const std::string& path, const std::str
   const double h = number(box[3], path, where + ".box[3]");
   if (w < 0.0 || h < 0.0)
     throw InputError(file_error(path, where + ": box has a negative width or height"));
+  // Pixel coordinates: no image sensor is 10^5 pixels wide (the largest are ~1.5 x 10^4), so a
+  // value beyond is no box of an image (and 1e39 would become infinity as a float).
+  constexpr double kMaxPixels = 1e5;
+  for (const double v : {x, y, w, h, x + w, y + h})
+    if (std::abs(v) > kMaxPixels)
+      throw InputError(file_error(path, where + ": box [" + std::to_string(x) + ", " +
+                                            std::to_string(y) + ", " + std::to_string(w) + ", " +
+                                            std::to_string(h) + "] lies beyond " +
+                                            std::to_string(static_cast<int>(kMaxPixels)) +
+                                            " pixels: not a box of an image"));
   out.box = cv::Rect2f(static_cast<float>(x), static_cast<float>(y), static_cast<float>(w),
                        static_cast<float>(h));
   const double score = number(required(d, "score", path, where), path, where + ".score");
@@ -69,6 +79,8 @@ Detection parse_detection(const json& d, const std::string& path, const std::str
   if (id != d.end()) {
     if (!id->is_number_integer())
       throw InputError(file_error(path, where + ".class_id is not an integer"));
+    if (id->get<double>() > 1e6)
+      throw InputError(file_error(path, where + ".class_id is beyond any class index"));
     out.class_id = id->get<int>();
     if (out.class_id < -1)
       throw InputError(file_error(path, where + ".class_id must be -1 or a class index"));

@@ -133,6 +133,20 @@ TEST(DetectionsFile, NegativeBox) {
   expect_input_error([&] { read_detections(path); }, {path, "negative"});
 }
 
+TEST(DetectionsFile, BoxBeyondAnyImage) {
+  // 1e39 is a finite double but infinity as a float: refused before the cast, as is any
+  // coordinate past 10^5 pixels.
+  TempDir dir;
+  for (const char* box :
+       {"[1e39, 2, 3, 4]", "[1, 2, 3, 1e39]", "[-200000, 2, 3, 4]", "[99999, 2, 3, 4]"}) {
+    const std::string path = dir.write("d.json", replaced(valid_text(), "[1, 2, 3, 4]", box));
+    expect_input_error([&] { read_detections(path); }, {path, "beyond", "pixels"});
+  }
+  const std::string big_id = dir.write(
+      "id.json", replaced(valid_text(), R"("class_id": 0)", R"("class_id": 99999999999)"));
+  expect_input_error([&] { read_detections(big_id); }, {big_id, "class_id"});
+}
+
 TEST(DetectionsFile, ScoreAboveOne) {
   TempDir dir;
   const std::string path =
