@@ -4,10 +4,13 @@
 
 #include <octomap/OcTree.h>
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <climits>
 #include <cmath>
-#include <map>
+#include <limits>
+#include <numbers>
+#include <random>
 #include <unordered_map>
 
 #include "mapping/octree_walk.hpp"
@@ -109,39 +112,110 @@ OccupancyGrid OccupancyMap::grid(const std::optional<FloorPlane>& given) const {
   return grid;
 }
 
-// With no floor from the sparse map (a scene without a detected floor plane), "up" is taken as
-// the first keyframe's image up (-y of its camera): a handheld or robot camera is held roughly
-// upright when a sequence starts. The floor is then the lowest height bin (one voxel thick)
-// holding at least 5 % of the occupied voxels, a share a floor in view always has (the floor is
-// the largest surface a camera looking into a room sees; a few low outliers are not); when no
-// bin holds that many, the lowest occupied voxel. The plane passes through the mean height of
-// that bin's voxels.
+namespace {
+
+struct PlaneCandidate {
+  Eigen::Vector3d normal;
+  double d = 0.0;
+  std::size_t inliers = 0;
+};
+
+std::size_t count_inliers(const std::vector<Eigen::Vector3d>& points, const Eigen::Vector3d& n,
+                          double d, double tolerance) {
+  std::size_t count = 0;
+  for (const auto& p : points)
+    if (std::abs(n.dot(p) + d) <= tolerance) ++count;
+  return count;
+}
+
+/// Near-horizontal planes (within 30 degrees of `up`) through three occupied voxels at a time,
+/// with their inliers (within `tolerance`). Deterministic: a fixed seed.
+std::vector<PlaneCandidate> horizontal_planes(const std::vector<Eigen::Vector3d>& points,
+                                              const Eigen::Vector3d& up, double tolerance) {
+  std::vector<PlaneCandidate> candidates;
+  std::mt19937 rng(7);
+  std::uniform_int_distribution<std::size_t> pick(0, points.size() - 1);
+  const double min_cos = std::cos(30.0 * std::numbers::pi / 180.0);
+  for (int iteration = 0; iteration < 300; ++iteration) {
+    const Eigen::Vector3d& a = points[pick(rng)];
+    const Eigen::Vector3d& b = points[pick(rng)];
+    const Eigen::Vector3d& c = points[pick(rng)];
+    Eigen::Vector3d n = (b - a).cross(c - a);
+    if (n.norm() < 1e-9) continue;
+    n.normalize();
+    if (n.dot(up) < 0.0) n = -n;
+    if (n.dot(up) < min_cos) continue;
+    const double d = -n.dot(a);
+    candidates.push_back({n, d, count_inliers(points, n, d, tolerance)});
+  }
+  return candidates;
+}
+
+/// The plane fitted to the inliers of `plane` (least squares), its normal along `up`.
+FloorPlane refit(const std::vector<Eigen::Vector3d>& points, const PlaneCandidate& plane,
+                 const Eigen::Vector3d& up, double tolerance) {
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  std::vector<Eigen::Vector3d> inliers;
+  for (const auto& p : points)
+    if (std::abs(plane.normal.dot(p) + plane.d) <= tolerance) inliers.push_back(p);
+  for (const auto& p : inliers) mean += p;
+  mean /= static_cast<double>(inliers.size());
+  Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
+  for (const auto& p : inliers) scatter += (p - mean) * (p - mean).transpose();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(scatter);
+  Eigen::Vector3d n = eigen.eigenvectors().col(0);
+  if (n.dot(up) < 0.0) n = -n;
+  return {n, -n.dot(mean)};
+}
+
+}  // namespace
+
+// With no floor from the sparse map (a scene without a detected floor plane): "up" is roughly
+// the first keyframe's image up (-y of its camera; a handheld or robot camera starts roughly
+// upright, though often pitched). The floor is the lowest of the near-horizontal planes (within
+// 30 degrees of that up) of the occupied voxels that hold at least half as many voxels as the
+// largest one (RANSAC, then a least-squares fit of its voxels): the floor
+// is the lowest large horizontal surface a camera in a room sees; a table top is higher, and
+// a ceiling higher still. With fewer than 3 occupied voxels, or no such plane, the plane
+// perpendicular to that up through the lowest occupied voxel; with no keyframe, z = 0, +z up.
 FloorPlane OccupancyMap::estimate_floor() const {
   FloorPlane floor;
   if (keyframes().empty()) return floor;
   const Eigen::Vector3d up = -(keyframes().front().T_w_c.rotation() * Eigen::Vector3d::UnitY());
-  const double res = options().resolution;
-  std::map<long, std::pair<std::size_t, double>> bins;  // bin -> count, sum of heights
-  std::size_t total = 0;
-  for (const auto& v : occupied_voxels()) {
-    const double h = up.dot(v.centre);
-    auto& bin = bins[static_cast<long>(std::floor(h / res))];
-    const auto n = detail::voxels_in_leaf(v.size, res);
-    bin.first += n;
-    bin.second += h * static_cast<double>(n);
-    total += n;
-  }
   floor.normal = up;
-  if (bins.empty()) return floor;
-  auto chosen = bins.begin();
-  for (auto it = bins.begin(); it != bins.end(); ++it) {
-    if (static_cast<double>(it->second.first) >= 0.05 * static_cast<double>(total)) {
-      chosen = it;
-      break;
-    }
-  }
-  floor.d = -chosen->second.second / static_cast<double>(chosen->second.first);
-  return floor;
+  std::vector<Eigen::Vector3d> points;
+  for (const auto& v : occupied_voxels()) points.push_back(v.centre);
+  if (points.empty()) return floor;
+  double lowest = up.dot(points.front());
+  for (const auto& p : points) lowest = std::min(lowest, up.dot(p));
+  floor.d = -lowest;
+  if (points.size() < 3) return floor;
+  // Half a voxel: the centres of the voxels a plane crosses lie within about that of it, and
+  // the next layer (a wall's lowest voxels beside the floor) a whole voxel away.
+  const double tolerance = 0.5 * options().resolution;
+  const auto candidates = horizontal_planes(points, up, tolerance);
+  std::size_t best = 0;
+  for (const auto& c : candidates) best = std::max(best, c.inliers);
+  // Each large plane's height along `up` under the voxels' centroid; the lowest ones (within two
+  // voxels of the lowest: the same plane, sampled at slightly different tilts) compete on their
+  // inliers.
+  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+  for (const auto& p : points) centroid += p;
+  centroid /= static_cast<double>(points.size());
+  const auto height = [&](const PlaneCandidate& c) {
+    return -(c.normal.dot(centroid) + c.d) / c.normal.dot(up);
+  };
+  const std::size_t large = std::max<std::size_t>(3, best / 2);
+  double lowest_plane = std::numeric_limits<double>::infinity();
+  for (const auto& c : candidates)
+    if (c.inliers >= large) lowest_plane = std::min(lowest_plane, height(c));
+  const PlaneCandidate* chosen = nullptr;
+  for (const auto& c : candidates)
+    if (c.inliers >= large && height(c) <= lowest_plane + 4.0 * tolerance &&
+        (chosen == nullptr || c.inliers > chosen->inliers))
+      chosen = &c;
+  if (chosen == nullptr) return floor;
+  return refit(points, *chosen, up, tolerance);
 }
 
 }  // namespace mcslam::mapping
