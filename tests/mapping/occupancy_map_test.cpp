@@ -55,9 +55,11 @@ TEST(OccupancyMap, WallSeenFromSeveralKeyframesIsOccupiedAndTheSpaceInFrontFree)
   OccupancyMap map;
   insert_all(map, world, wall_path(5));
   const double wall = world.room_max.x() - 0.01;
-  // The part of the wall that every keyframe sees: y in [1.7, 3.3], z in [0.4, 1.6].
+  // The part of the wall that every keyframe sees, and the space in front of it within every
+  // keyframe's view: y in [1.7, 3.3], z in [0.4, 1.4] (the view's top edge is 1.53 m high at
+  // x = 4.5).
   const auto on_wall = [&](double x) {
-    return [x](double a, double b) { return Eigen::Vector3d(x, 1.7 + 1.6 * a, 0.4 + 1.2 * b); };
+    return [x](double a, double b) { return Eigen::Vector3d(x, 1.7 + 1.6 * a, 0.4 + 1.0 * b); };
   };
   EXPECT_GE(share_in_state(map, VoxelState::kOccupied, on_wall(wall)), 0.99);
   EXPECT_GE(share_in_state(map, VoxelState::kFree, on_wall(wall - 0.12)), 0.99);
