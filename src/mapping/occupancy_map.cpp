@@ -4,6 +4,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iterator>
+#include <map>
 #include <opencv2/imgproc.hpp>
 #include <string>
 #include <tuple>
@@ -234,22 +236,46 @@ void OccupancyMap::insert(KeyframeSamples samples) {
   m.insert_ms.push_back(watch.elapsed_ms());
 }
 
-bool OccupancyMap::correct(const std::unordered_map<KeyframeId, SE3>& T_w_c) {
+namespace {
+
+/// Whether a pose change moves the map by more than `tolerance` (metres) within `range`.
+bool moved(const SE3& a, const SE3& b, double tolerance, double range) {
+  const double shift = (a.translation() - b.translation()).norm();
+  const double turn = rotation_angle(a.quaternion().conjugate() * b.quaternion()) * range;
+  return shift > tolerance || turn > tolerance;
+}
+
+}  // namespace
+
+bool OccupancyMap::correct(const std::unordered_map<KeyframeId, SE3>& T_w_c, bool listed_only) {
   Impl& m = *impl_;
-  const double tolerance = m.options.rebuild_tolerance * m.options.resolution;
-  bool moved = false;
+  // The listed keyframes that are stored, by id, with their world motion (new * old^-1).
+  std::map<KeyframeId, SE3> motions;
   for (const auto& [id, pose] : T_w_c) {
     const auto found = m.index.find(id);
-    if (found == m.index.end()) continue;
-    SE3& old = m.keyframes[found->second].T_w_c;
-    const double shift = (old.translation() - pose.translation()).norm();
-    const double turn =
-        rotation_angle(old.quaternion().conjugate() * pose.quaternion()) * m.options.max_range;
-    if (shift > tolerance || turn > tolerance) moved = true;
-    old = pose;
+    if (found != m.index.end())
+      motions.emplace(id, pose * m.keyframes[found->second].T_w_c.inverse());
   }
-  if (moved) m.reintegrate_all();
-  return moved;
+  if (motions.empty()) return false;
+  const double tolerance = m.options.rebuild_tolerance * m.options.resolution;
+  bool any = false;
+  for (auto& kf : m.keyframes) {
+    SE3 pose;
+    const auto listed = T_w_c.find(kf.id);
+    if (listed != T_w_c.end()) {
+      pose = listed->second;
+    } else if (listed_only) {
+      continue;
+    } else {  // the closest earlier listed keyframe's motion; none earlier: it stays
+      auto ref = motions.upper_bound(kf.id);
+      if (ref == motions.begin()) continue;
+      pose = std::prev(ref)->second * kf.T_w_c;
+    }
+    if (moved(kf.T_w_c, pose, tolerance, m.options.max_range)) any = true;
+    kf.T_w_c = pose;
+  }
+  if (any) m.reintegrate_all();
+  return any;
 }
 
 void OccupancyMap::rebuild() { impl_->reintegrate_all(); }

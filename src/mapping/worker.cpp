@@ -32,7 +32,7 @@ void MappingWorker::run(const std::function<void(OccupancyMap&)>& job) {
 }
 
 void MappingWorker::enqueue(const KeyframeDepth& keyframe) {
-  if (failure_->failed()) return;
+  if (!worker_ || failure_->failed()) return;  // finished or failed: dropped
   auto copy = std::make_shared<KeyframeDepth>(keyframe);
   copy->depth = keyframe.depth.clone();
   copy->dynamic_mask = keyframe.dynamic_mask.clone();
@@ -41,15 +41,15 @@ void MappingWorker::enqueue(const KeyframeDepth& keyframe) {
 }
 
 void MappingWorker::enqueue_shared(KeyframeDepth keyframe) {
-  if (failure_->failed()) return;
+  if (!worker_ || failure_->failed()) return;  // finished or failed: dropped
   auto shared = std::make_shared<KeyframeDepth>(std::move(keyframe));
   run([shared](OccupancyMap& map) { map.insert(*shared); });
 }
 
-void MappingWorker::correct(std::unordered_map<KeyframeId, SE3> T_w_c) {
-  if (failure_->failed()) return;
+void MappingWorker::correct(std::unordered_map<KeyframeId, SE3> T_w_c, bool listed_only) {
+  if (!worker_ || failure_->failed()) return;  // finished or failed: dropped
   auto poses = std::make_shared<std::unordered_map<KeyframeId, SE3>>(std::move(T_w_c));
-  run([poses](OccupancyMap& map) { map.correct(*poses); });
+  run([poses, listed_only](OccupancyMap& map) { map.correct(*poses, listed_only); });
 }
 
 void MappingWorker::set_floor(std::optional<FloorPlane> floor) {
@@ -78,7 +78,12 @@ void MappingWorker::with_map(const std::function<void(const OccupancyMap&)>& fn)
 std::size_t MappingWorker::pending() const { return pending_.load(); }
 
 void MappingWorker::wait() {
-  worker_->wait();
+  if (worker_) worker_->wait();
+  failure_->throw_if_failed();
+}
+
+void MappingWorker::finish() {
+  worker_.reset();  // runs what is queued, then joins
   failure_->throw_if_failed();
 }
 

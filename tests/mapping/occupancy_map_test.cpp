@@ -169,6 +169,16 @@ TEST(OccupancyMap, CorrectionRebuildsWithoutADoubledWall) {
   EXPECT_FALSE(map.correct(corrected));
   const OccupancyStats s = map.stats();
   EXPECT_EQ(s.rebuilds, 1u);
+  // A correction that lists only some keyframes: the others follow the closest earlier listed
+  // one (keyframes 5-7 keyframe 4) or, with none earlier, stay (keyframes 0-3).
+  const SE3 drift(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.2, 0.0, 0.0));
+  EXPECT_TRUE(map.correct(
+      {{4, drift * poses[4]}, {5, drift * poses[5]}, {6, drift * poses[6]}, {7, drift * poses[7]}},
+      true));
+  EXPECT_GT(evaluate_map(map, surfaces).ghost_rate, 0.05);
+  EXPECT_TRUE(map.correct({{4, poses[4]}}));
+  EXPECT_EQ(evaluate_map(map, surfaces).ghosts, 0u);
+  EXPECT_EQ(map.stats().occupied_voxels, truth.stats().occupied_voxels);
   std::printf(
       "[ correction ] ghost rate drifted %.3f, corrected %.4f; rebuild of %zu keyframes "
       "%.1f ms\n",

@@ -109,6 +109,20 @@ TEST(MappingWorker, KeepsTheThreadsExceptionAndStops) {
   EXPECT_EQ(worker.snapshot()->stats.keyframes, 0u);  // the later keyframe was not integrated
   worker.enqueue(world.render(5, path(1)[0], cam));   // dropped
   EXPECT_EQ(worker.pending(), 0u);
+  EXPECT_THROW(worker.finish(), std::runtime_error);
+}
+
+TEST(MappingWorker, FinishIntegratesWhatIsQueuedThenDropsTheRest) {
+  BoxWorld world;
+  const PinholeCamera cam = test::make_camera();
+  MappingWorker worker;
+  worker.enqueue(world.render(0, path(1)[0], cam));
+  worker.finish();
+  EXPECT_EQ(worker.snapshot()->stats.keyframes, 1u);
+  worker.enqueue(world.render(1, path(2)[1], cam));
+  worker.wait();
+  EXPECT_EQ(worker.snapshot()->stats.keyframes, 1u);
+  EXPECT_EQ(worker.pending(), 0u);
 }
 
 }  // namespace

@@ -157,10 +157,17 @@ class OccupancyMap {
   void insert(const KeyframeDepth& keyframe);
   /// Integrates keyframe samples (as kept by keyframes(), e.g. read from a saved session).
   void insert(KeyframeSamples samples);
-  /// Sets the listed keyframes' poses (T_w_c; unknown ids are ignored). When one moved by more
-  /// than rebuild_tolerance of a voxel, clears the octree and integrates every stored keyframe
-  /// again, in the order inserted, with its pose now. Returns whether it rebuilt.
-  bool correct(const std::unordered_map<KeyframeId, SE3>& T_w_c);
+  /// Sets the listed keyframes' poses (T_w_c; ids not stored are ignored). Stored keyframes not
+  /// listed (unless listed_only) move with the closest earlier listed keyframe (by id), keeping
+  /// their pose relative to it, and stay when no listed keyframe is earlier: so a keyframe the
+  /// sparse map culled still follows a loop correction that gives the poses of all the sparse
+  /// map's keyframes. (map::apply_correction moves keyframes older than every corrected one with
+  /// the first corrected one; here they stay, so that listing the keyframes that moved is
+  /// enough.) When
+  /// a keyframe moved by more than rebuild_tolerance of a voxel (a rotation counted at
+  /// max_range), clears the octree and integrates every stored keyframe again, in the order
+  /// inserted, with its pose now. Returns whether it rebuilt.
+  bool correct(const std::unordered_map<KeyframeId, SE3>& T_w_c, bool listed_only = false);
   /// Clears the octree and integrates every stored keyframe again.
   void rebuild();
 

@@ -34,6 +34,8 @@ struct OccupancySnapshot {
   OccupancyStats stats;
 };
 
+/// enqueue(), correct(), wait() and finish() are for one caller (the thread that owns the
+/// worker, as core's Worker); snapshot(), with_map(), pending() and set_floor() for any thread.
 class MappingWorker {
  public:
   /// Starts the thread (named thread_name). Throws InputError when options.check() fails.
@@ -52,9 +54,10 @@ class MappingWorker {
   /// write them afterwards (a frame's images are immutable once built).
   void enqueue_shared(KeyframeDepth keyframe);
   /// Queues new poses (T_w_c) of stored keyframes, applied after the keyframes queued before:
-  /// OccupancyMap::correct (the map rebuilds when one moved). A map::MapCorrection holds T_c_w
-  /// and only the keyframes it lists: pass the poses of every keyframe that moved, inverted.
-  void correct(std::unordered_map<KeyframeId, SE3> T_w_c);
+  /// OccupancyMap::correct (the map rebuilds when one moved). A map::MapCorrection holds T_c_w:
+  /// pass the sparse map's keyframe poses after it applied the correction, inverted (all of
+  /// them, or those that moved).
+  void correct(std::unordered_map<KeyframeId, SE3> T_w_c, bool listed_only = false);
   /// The floor the grid is computed over (from the sparse map's planes); nullopt: estimated.
   void set_floor(std::optional<FloorPlane> floor);
 
@@ -70,6 +73,9 @@ class MappingWorker {
   /// Blocks until everything queued so far is integrated. Throws std::runtime_error ("the
   /// mapping thread (<name>) failed: <what>") when the thread failed.
   void wait();
+  /// wait(), then stops the thread: later keyframes and corrections are dropped. Throws as
+  /// wait() does. The destructor finishes too, without throwing.
+  void finish();
   bool failed() const;
   /// "" without a failure.
   std::string failure_message() const;
