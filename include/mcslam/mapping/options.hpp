@@ -1,0 +1,78 @@
+#pragma once
+// Settings of the dense occupancy map (the `mapping.` settings): the octree's resolution, the
+// depth sensor's range and noise, the log-odds of a hit and a miss, the sampling of keyframe
+// depth and the height band of the 2D grid.
+
+#include <optional>
+#include <string>
+
+#include "mcslam/core/camera.hpp"
+
+namespace mcslam::mapping {
+
+struct OccupancyOptions {
+  /// Edge of a voxel and of a grid cell (metres). 5 cm: a person's leg or a chair leg is one or
+  /// two voxels, a 10 x 10 x 3 m room is 2.4 M voxels at most (far fewer leaves: free space is
+  /// pruned into large nodes).
+  double resolution = 0.05;
+  /// Depth (z, metres) beyond which a measurement is not an obstacle: its ray frees space up to
+  /// this depth and marks nothing. Structured-light sensors (Kinect v1, Xtion) give depth to
+  /// ~8 m, but its noise grows with z^2 (below): 4 m is where it reaches ~2.3 cm, half a voxel.
+  double max_range = 4.0;
+  /// Depth noise of a structured-light sensor, sigma_z = depth_noise_k * z^2 (metres, z in
+  /// metres). Depth comes from disparity d = f * b / z, so a disparity error sigma_d gives
+  /// sigma_z = z^2 * sigma_d / (f * b). Kinect v1: IR camera f ~ 580 px, baseline b ~ 7.5 cm,
+  /// disparity measured in steps of 1/8 px with sigma_d ~ 0.06 px: k = 0.06 / (580 * 0.075)
+  /// = 1.4e-3 per metre. 1.425e-3 is the figure given for Khoshelham & Elberink (2012),
+  /// "Accuracy and resolution of Kinect depth data for indoor mapping applications" (Sensors 12,
+  /// 1437-1454), who measured the random error growing with z^2 to ~4 cm at 5 m. 1.4 mm at 1 m,
+  /// 2.3 cm at 4 m. 0 disables the noise model (exact depth).
+  double depth_noise_k = 1.425e-3;
+  /// A measurement's free ray stops free_margin_sigmas * sigma_z before the measured point, so
+  /// that the noise of one keyframe does not free (erode) the surface voxel another one hit.
+  /// The hit itself goes to every voxel within +-sigma_z of the point along its ray.
+  double free_margin_sigmas = 3.0;
+  /// Occupancy probabilities (OctoMap's and octomap_server's defaults): a hit adds
+  /// logodds(prob_hit) = +0.85, a miss logodds(prob_miss) = -0.41, each once per keyframe and
+  /// voxel; a voxel is occupied above prob_occupied. Its value is clamped to
+  /// [clamp_min, clamp_max] so that the map can change: a voxel at clamp_max (+3.48) becomes
+  /// free after 9 keyframes that see through it (the place a pushed chair left), one at
+  /// clamp_min (-1.99) occupied after 3 keyframes that hit it.
+  double prob_hit = 0.7;
+  double prob_miss = 0.4;
+  double prob_occupied = 0.5;
+  double clamp_min = 0.12;
+  double clamp_max = 0.97;
+  /// Keyframe depth is sampled every pixel_step-th pixel of every pixel_step-th row; these
+  /// samples are integrated and stored (for rebuilds). 0, auto: the sparsest step whose samples
+  /// are still at most half a voxel apart at max_range (effective_pixel_step()): at depth z a
+  /// step of s pixels spans s * z / fx metres, so s = max(1, floor(resolution * fx /
+  /// (2 * max_range))): 3 for a 525 px camera at 5 cm and 4 m (samples 2.3 cm apart at 4 m,
+  /// 5.7 mm at 1 m), 34,080 samples of a 640 x 480 image.
+  int pixel_step = 0;
+  /// Dynamic-mask pixels are grown by this many pixels (full image) before sampling: the
+  /// outline of a person mixes its depth with the background's and a mask is seldom exact
+  /// there. Grown pixels only free their ray; 0 keeps the masks as given.
+  int mask_dilation_px = 3;
+  /// Keep each sample's colour (3 bytes a sample) for the voxels' colours.
+  bool store_colour = true;
+  /// The 2D grid's height band above the floor (metres): a cell is occupied when an occupied
+  /// voxel's centre lies in [floor + band_min, floor + band_max]. 0.1 m leaves out the floor and
+  /// its noise; 1.8 m is above a mobile robot and below most ceilings and lamps.
+  double band_min = 0.1;
+  double band_max = 1.8;
+  /// A pose change (translation in metres, or rotation angle times max_range) below this
+  /// fraction of a voxel does not rebuild the map on correct().
+  double rebuild_tolerance = 0.25;
+
+  /// The sampling step used for a camera: pixel_step, or with 0 (auto) the rule above.
+  int effective_pixel_step(const PinholeCamera& camera) const;
+  /// sigma_z at depth z (metres).
+  double depth_sigma(double z) const { return depth_noise_k * z * z; }
+
+  /// An empty optional when the settings are usable; otherwise what is wrong, naming the
+  /// setting.
+  std::optional<std::string> check() const;
+};
+
+}  // namespace mcslam::mapping

@@ -1,0 +1,96 @@
+#pragma once
+// The occupancy map on a thread of its own: keyframes and corrections are queued and integrated
+// in the order given, never in the caller's path; readers (viewer, ROS node, Python) take
+// immutable snapshots from any thread.
+
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include "mcslam/mapping/occupancy_map.hpp"
+
+namespace mcslam {
+class Worker;
+}
+
+namespace mcslam::mapping {
+
+namespace detail {
+class ThreadFailure;
+}
+
+/// What readers see of the map at one moment.
+struct OccupancySnapshot {
+  /// Changes integrated so far (keyframes inserted, corrections that rebuilt).
+  std::uint64_t version = 0;
+  OccupancyGrid grid;  ///< over the floor set with set_floor(), else the estimated one
+  std::vector<OccupiedVoxel> voxels;
+  OccupancyStats stats;
+};
+
+/// enqueue(), correct(), wait() and finish() are for one caller (the thread that owns the
+/// worker, as core's Worker); snapshot(), with_map(), pending() and set_floor() for any thread.
+class MappingWorker {
+ public:
+  /// Starts the thread (named thread_name). Throws InputError when options.check() fails.
+  explicit MappingWorker(const OccupancyOptions& options = {},
+                         const std::string& thread_name = "mcslam-mapping");
+  /// Integrates what is still queued, then stops the thread; a failure is not thrown here.
+  ~MappingWorker();
+  MappingWorker(const MappingWorker&) = delete;
+  MappingWorker& operator=(const MappingWorker&) = delete;
+
+  /// Queues a keyframe; returns at once. Its images are copied (VGA depth, mask and colour: 2 MB,
+  /// 1-10 ms on a loaded 2-core machine), so the caller may reuse them. After a failure the
+  /// keyframe is dropped.
+  void enqueue(const KeyframeDepth& keyframe);
+  /// Queues a keyframe without copying its images: they are shared, and the caller must not
+  /// write them afterwards (a frame's images are immutable once built).
+  void enqueue_shared(KeyframeDepth keyframe);
+  /// Queues new poses (T_w_c) of stored keyframes, applied after the keyframes queued before:
+  /// OccupancyMap::correct (the map rebuilds when one moved). A map::MapCorrection holds T_c_w:
+  /// pass the sparse map's keyframe poses after it applied the correction, inverted (all of
+  /// them, or those that moved).
+  void correct(std::unordered_map<KeyframeId, SE3> T_w_c, bool listed_only = false);
+  /// The floor the grid is computed over (from the sparse map's planes); nullopt: estimated.
+  void set_floor(std::optional<FloorPlane> floor);
+
+  /// The map now (any thread). Built on demand when the map changed since the last one (the
+  /// grid and the voxel list: milliseconds to tens of milliseconds, during which the mapping
+  /// thread waits), otherwise the same shared snapshot.
+  std::shared_ptr<const OccupancySnapshot> snapshot() const;
+  /// Runs fn on the map under its lock (any thread), e.g. to export it.
+  void with_map(const std::function<void(const OccupancyMap&)>& fn) const;
+  /// Keyframes and corrections queued and not integrated yet.
+  std::size_t pending() const;
+
+  /// Blocks until everything queued so far is integrated. Throws std::runtime_error ("the
+  /// mapping thread (<name>) failed: <what>") when the thread failed.
+  void wait();
+  /// wait(), then stops the thread: later keyframes and corrections are dropped. Throws as
+  /// wait() does. The destructor finishes too, without throwing.
+  void finish();
+  bool failed() const;
+  /// "" without a failure.
+  std::string failure_message() const;
+
+ private:
+  void run(const std::function<void(OccupancyMap&)>& job);
+
+  mutable std::mutex map_mutex_;  ///< guards map_, version_, floor_ and the cached snapshot
+  OccupancyMap map_;
+  std::uint64_t version_ = 0;
+  std::optional<FloorPlane> floor_;
+  mutable std::shared_ptr<const OccupancySnapshot> cached_;
+  std::unique_ptr<detail::ThreadFailure> failure_;
+  std::atomic<std::size_t> pending_{0};
+  std::unique_ptr<Worker> worker_;  ///< last: stopped (its queue run) before the rest goes
+};
+
+}  // namespace mcslam::mapping

@@ -1,0 +1,115 @@
+#include "mcslam/mapping/export.hpp"
+
+#include <octomap/OcTree.h>
+
+#include <bit>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <sstream>
+
+#include "mcslam/core/error.hpp"
+
+namespace mcslam::mapping {
+
+namespace {
+
+std::ofstream open_output(const std::string& path) {
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  if (!out) throw InputError(file_error(path, "cannot write"));
+  return out;
+}
+
+void finish_output(std::ofstream& out, const std::string& path) {
+  out.flush();
+  if (!out) throw InputError(file_error(path, "cannot write (write failed)"));
+}
+
+/// The grid as an 8-bit image, top row the grid's highest row, one pixel a cell.
+cv::Mat grid_image(const OccupancyGrid& grid) {
+  cv::Mat image(grid.height, grid.width, CV_8UC1);
+  for (int row = 0; row < grid.height; ++row) {
+    auto* out = image.ptr<std::uint8_t>(grid.height - 1 - row);
+    for (int col = 0; col < grid.width; ++col) {
+      const std::int8_t c = grid.at(col, row);
+      out[col] = c == OccupancyGrid::kOccupied ? 0 : c == OccupancyGrid::kFree ? 254 : 205;
+    }
+  }
+  return image;
+}
+
+std::string image_reference(const std::string& pgm_path, const std::string& yaml_path) {
+  namespace fs = std::filesystem;
+  const fs::path pgm = fs::absolute(pgm_path), yaml = fs::absolute(yaml_path);
+  if (pgm.parent_path().lexically_normal() == yaml.parent_path().lexically_normal())
+    return pgm.filename().string();
+  return pgm.lexically_normal().string();
+}
+
+}  // namespace
+
+void write_octomap_binary(const OccupancyMap& map, const std::string& path) {
+  { std::ofstream probe = open_output(path); }
+  if (!map.octree().writeBinaryConst(path))
+    throw InputError(file_error(path, "cannot write the octree"));
+}
+
+void write_map_server(const OccupancyGrid& grid, const std::string& pgm_path,
+                      const std::string& yaml_path) {
+  std::ofstream pgm = open_output(pgm_path);
+  pgm << "P5\n# mcslam occupancy grid, " << grid.resolution << " m/pixel\n"
+      << grid.width << ' ' << grid.height << "\n255\n";
+  const cv::Mat image = grid_image(grid);
+  for (int r = 0; r < image.rows; ++r)
+    pgm.write(reinterpret_cast<const char*>(image.ptr(r)), image.cols);
+  finish_output(pgm, pgm_path);
+
+  std::ofstream yaml = open_output(yaml_path);
+  char origin[128];
+  std::snprintf(origin, sizeof origin, "[%.6f, %.6f, 0.0]", grid.origin.x(), grid.origin.y());
+  char resolution[64];
+  std::snprintf(resolution, sizeof resolution, "%.6f", grid.resolution);
+  yaml << "image: " << image_reference(pgm_path, yaml_path) << "\n"
+       << "mode: trinary\n"
+       << "resolution: " << resolution << "\n"
+       << "origin: " << origin << "\n"
+       << "negate: 0\n"
+       << "occupied_thresh: 0.65\n"
+       << "free_thresh: 0.196\n";
+  finish_output(yaml, yaml_path);
+}
+
+void write_grid_png(const OccupancyGrid& grid, const std::string& path, int scale) {
+  cv::Mat image = grid.width > 0 ? grid_image(grid) : cv::Mat(1, 1, CV_8UC1, cv::Scalar(205));
+  cv::Mat big;
+  cv::resize(image, big, {}, std::max(1, scale), std::max(1, scale), cv::INTER_NEAREST);
+  bool written = false;
+  try {
+    written = cv::imwrite(path, big);
+  } catch (const cv::Exception& e) {
+    throw InputError(file_error(path, std::string("cannot write: ") + e.what()));
+  }
+  if (!written) throw InputError(file_error(path, "cannot write"));
+}
+
+void write_occupied_voxels_ply(const OccupancyMap& map, const std::string& path) {
+  const auto voxels = map.occupied_voxels();
+  std::ofstream out = open_output(path);
+  out << "ply\nformat binary_little_endian 1.0\n"
+      << "comment mcslam occupied voxel centres, resolution " << map.options().resolution << " m\n"
+      << "element vertex " << voxels.size() << "\n"
+      << "property float x\nproperty float y\nproperty float z\n"
+      << "property uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n";
+  static_assert(std::endian::native == std::endian::little, "the PLY is written little-endian");
+  for (const auto& v : voxels) {
+    const float xyz[3] = {static_cast<float>(v.centre.x()), static_cast<float>(v.centre.y()),
+                          static_cast<float>(v.centre.z())};
+    out.write(reinterpret_cast<const char*>(xyz), sizeof xyz);
+    out.write(reinterpret_cast<const char*>(v.rgb.data()), 3);
+  }
+  finish_output(out, path);
+}
+
+}  // namespace mcslam::mapping

@@ -1,0 +1,339 @@
+#include "mcslam/mapping/occupancy_map.hpp"
+
+#include <octomap/OcTree.h>
+
+#include <algorithm>
+#include <cmath>
+#include <iterator>
+#include <map>
+#include <opencv2/imgproc.hpp>
+#include <string>
+#include <tuple>
+
+#include "mapping/octree_walk.hpp"
+#include "mcslam/core/error.hpp"
+
+namespace mcslam::mapping {
+
+namespace {
+
+struct ColourSum {
+  std::uint32_t b = 0, g = 0, r = 0, n = 0;
+};
+
+using ColourMap = std::unordered_map<octomap::OcTreeKey, ColourSum, octomap::OcTreeKey::KeyHash>;
+
+void check_image(const cv::Mat& image, int type, const KeyframeDepth& kf, const char* what) {
+  if (image.empty()) return;
+  if (image.type() != type || image.cols != kf.camera.width || image.rows != kf.camera.height)
+    throw InputError("keyframe " + std::to_string(kf.id) + ": the " + what + " image must be " +
+                     std::to_string(kf.camera.width) + "x" + std::to_string(kf.camera.height) +
+                     " of type " + cv::typeToString(type) + ", got " + std::to_string(image.cols) +
+                     "x" + std::to_string(image.rows) + " " + cv::typeToString(image.type()));
+}
+
+std::uint16_t to_millimetres(float z) {
+  if (!(z > 0.0f) || !std::isfinite(z)) return 0;
+  return static_cast<std::uint16_t>(std::min(65535.0f, std::max(1.0f, std::round(z * 1000.0f))));
+}
+
+}  // namespace
+
+std::size_t KeyframeSamples::bytes() const {
+  const auto size = [](const cv::Mat& m) { return m.empty() ? 0 : m.total() * m.elemSize(); };
+  return size(depth_mm) + size(dynamic) + size(colour);
+}
+
+KeyframeSamples sample_keyframe(const KeyframeDepth& kf, const OccupancyOptions& options) {
+  if (auto problem = kf.camera.check())
+    throw InputError("keyframe " + std::to_string(kf.id) + ": " + *problem);
+  if (kf.depth.empty()) throw InputError("keyframe " + std::to_string(kf.id) + ": no depth image");
+  check_image(kf.depth, CV_32FC1, kf, "depth");
+  check_image(kf.dynamic_mask, CV_8UC1, kf, "dynamic mask");
+  check_image(kf.colour, CV_8UC3, kf, "colour");
+
+  KeyframeSamples s;
+  s.id = kf.id;
+  s.T_w_c = kf.T_w_c;
+  s.camera = kf.camera;
+  s.step = options.effective_pixel_step(kf.camera);
+  const int cols = kf.camera.width / s.step;
+  const int rows = kf.camera.height / s.step;
+  const int offset = (s.step - 1) / 2;
+  cv::Mat mask;
+  if (!kf.dynamic_mask.empty() && options.mask_dilation_px > 0) {
+    const int k = 2 * options.mask_dilation_px + 1;
+    cv::dilate(kf.dynamic_mask, mask, cv::getStructuringElement(cv::MORPH_ELLIPSE, {k, k}));
+  } else {
+    mask = kf.dynamic_mask;
+  }
+  const bool colour = options.store_colour && !kf.colour.empty();
+  s.depth_mm.create(rows, cols, CV_16UC1);
+  s.dynamic = cv::Mat::zeros(rows, cols, CV_8UC1);
+  if (colour) s.colour.create(rows, cols, CV_8UC3);
+  for (int j = 0; j < rows; ++j) {
+    const int v = j * s.step + offset;
+    for (int i = 0; i < cols; ++i) {
+      const int u = i * s.step + offset;
+      s.depth_mm.at<std::uint16_t>(j, i) = to_millimetres(kf.depth.at<float>(v, u));
+      if (!mask.empty()) s.dynamic.at<std::uint8_t>(j, i) = mask.at<std::uint8_t>(v, u) ? 1 : 0;
+      if (colour) s.colour.at<cv::Vec3b>(j, i) = kf.colour.at<cv::Vec3b>(v, u);
+    }
+  }
+  return s;
+}
+
+struct OccupancyMap::Impl {
+  OccupancyOptions options;
+  octomap::OcTree tree;
+  std::vector<KeyframeSamples> keyframes;
+  std::unordered_map<KeyframeId, std::size_t> index;
+  ColourMap colours;
+  std::vector<double> insert_ms;
+  std::size_t rebuilds = 0;
+  double last_rebuild_ms = 0.0;
+  float hit_log = 0.0f;
+  float miss_log = 0.0f;
+  // Scratch space of one integration (kept to avoid reallocating).
+  octomap::KeySet free_keys;
+  octomap::KeySet hit_keys;
+  octomap::KeySet free_ends;
+  octomap::KeyRay ray;
+
+  explicit Impl(const OccupancyOptions& o) : options(o), tree(o.resolution) {
+    tree.setProbHit(o.prob_hit);
+    tree.setProbMiss(o.prob_miss);
+    tree.setOccupancyThres(o.prob_occupied);
+    tree.setClampingThresMin(o.clamp_min);
+    tree.setClampingThresMax(o.clamp_max);
+    hit_log = octomap::logodds(o.prob_hit);
+    miss_log = octomap::logodds(o.prob_miss);
+  }
+
+  /// Frees the voxels from `from` to the voxel holding `to` (not included). Rays are cast to
+  /// the centre of that last voxel, once per voxel: nearby samples of a keyframe (9 per voxel
+  /// side at 1 m with the default step) would cross the same voxels again.
+  void add_free(const Eigen::Vector3d& from, const Eigen::Vector3d& to) {
+    octomap::OcTreeKey end;
+    if (!tree.coordToKeyChecked(to.x(), to.y(), to.z(), end)) return;
+    if (!free_ends.insert(end).second) return;
+    if (tree.computeRayKeys(detail::to_point(from), tree.keyToCoord(end), ray))
+      free_keys.insert(ray.begin(), ray.end());
+  }
+
+  /// The voxels within +-sigma of the point p = o + z * dir_z (dir_z: the ray at unit depth).
+  void add_hit(const Eigen::Vector3d& o, const Eigen::Vector3d& dir_z, double z, double sigma,
+               const cv::Vec3b* bgr) {
+    const Eigen::Vector3d p = o + z * dir_z;
+    octomap::OcTreeKey key;
+    if (!tree.coordToKeyChecked(p.x(), p.y(), p.z(), key)) return;
+    hit_keys.insert(key);
+    if (bgr != nullptr) {
+      ColourSum& c = colours[key];
+      c.b += (*bgr)[0];
+      c.g += (*bgr)[1];
+      c.r += (*bgr)[2];
+      ++c.n;
+    }
+    if (sigma < 0.05 * options.resolution) return;
+    const Eigen::Vector3d near = o + (z - sigma) * dir_z;
+    const Eigen::Vector3d far = o + (z + sigma) * dir_z;
+    if (tree.computeRayKeys(detail::to_point(near), detail::to_point(far), ray))
+      hit_keys.insert(ray.begin(), ray.end());
+    if (tree.coordToKeyChecked(far.x(), far.y(), far.z(), key)) hit_keys.insert(key);
+  }
+
+  void collect(const KeyframeSamples& s);
+  void integrate(const KeyframeSamples& s);
+  void reintegrate_all();
+};
+
+void OccupancyMap::Impl::collect(const KeyframeSamples& s) {
+  const Eigen::Matrix3d R = s.T_w_c.rotation();
+  const Eigen::Vector3d o = s.T_w_c.translation();
+  const PinholeCamera& cam = s.camera;
+  const double max_range = options.max_range;
+  for (int j = 0; j < s.depth_mm.rows; ++j) {
+    for (int i = 0; i < s.depth_mm.cols; ++i) {
+      const std::uint16_t mm = s.depth_mm.at<std::uint16_t>(j, i);
+      if (mm == 0) continue;
+      const double z = 1e-3 * mm;
+      const Eigen::Vector2d uv = s.pixel(i, j);
+      // The ray at unit depth, in the world frame: p_w = o + z * dir_z.
+      const Eigen::Vector3d dir_z =
+          R * Eigen::Vector3d((uv.x() - cam.cx) / cam.fx, (uv.y() - cam.cy) / cam.fy, 1.0);
+      if (z > max_range) {
+        add_free(o, o + max_range * dir_z);
+        continue;
+      }
+      const double sigma = options.depth_sigma(z);
+      const double z_free = z - options.free_margin_sigmas * sigma;
+      if (z_free > 0.0) add_free(o, o + z_free * dir_z);
+      if (s.dynamic.at<std::uint8_t>(j, i) != 0) continue;
+      add_hit(o, dir_z, z, sigma, s.colour.empty() ? nullptr : &s.colour.at<cv::Vec3b>(j, i));
+    }
+  }
+}
+
+void OccupancyMap::Impl::integrate(const KeyframeSamples& s) {
+  free_keys.clear();
+  hit_keys.clear();
+  free_ends.clear();
+  collect(s);
+  // A voxel that one measurement of the keyframe hit is not freed by another one passing by.
+  for (const auto& key : hit_keys) free_keys.erase(key);
+  for (const auto& key : free_keys) tree.updateNode(key, miss_log, true);
+  for (const auto& key : hit_keys) tree.updateNode(key, hit_log, true);
+  tree.updateInnerOccupancy();
+  // Lazy updates leave every voxel a leaf: merge the children that agree (free space at
+  // clamp_min, mostly) into their parent.
+  tree.prune();
+}
+
+void OccupancyMap::Impl::reintegrate_all() {
+  Stopwatch watch;
+  tree.clear();
+  colours.clear();
+  for (const auto& s : keyframes) integrate(s);
+  ++rebuilds;
+  last_rebuild_ms = watch.elapsed_ms();
+}
+
+OccupancyMap::OccupancyMap(const OccupancyOptions& options) {
+  if (auto problem = options.check()) throw InputError(*problem);
+  impl_ = std::make_unique<Impl>(options);
+}
+
+OccupancyMap::~OccupancyMap() = default;
+OccupancyMap::OccupancyMap(OccupancyMap&&) noexcept = default;
+OccupancyMap& OccupancyMap::operator=(OccupancyMap&&) noexcept = default;
+
+void OccupancyMap::insert(const KeyframeDepth& keyframe) {
+  Stopwatch watch;
+  insert(sample_keyframe(keyframe, impl_->options));
+  impl_->insert_ms.back() = watch.elapsed_ms();
+}
+
+void OccupancyMap::insert(KeyframeSamples samples) {
+  Stopwatch watch;
+  Impl& m = *impl_;
+  if (samples.depth_mm.type() != CV_16UC1 || samples.dynamic.type() != CV_8UC1 ||
+      samples.dynamic.size() != samples.depth_mm.size() ||
+      (!samples.colour.empty() &&
+       (samples.colour.type() != CV_8UC3 || samples.colour.size() != samples.depth_mm.size())))
+    throw InputError("keyframe " + std::to_string(samples.id) +
+                     ": samples must be CV_16UC1 depth, CV_8UC1 mask (and CV_8UC3 colour) of "
+                     "one size");
+  const auto found = m.index.find(samples.id);
+  if (found != m.index.end()) {
+    m.keyframes[found->second] = std::move(samples);
+    m.reintegrate_all();
+  } else {
+    m.index.emplace(samples.id, m.keyframes.size());
+    m.keyframes.push_back(std::move(samples));
+    m.integrate(m.keyframes.back());
+  }
+  m.insert_ms.push_back(watch.elapsed_ms());
+}
+
+namespace {
+
+/// Whether a pose change moves the map by more than `tolerance` (metres) within `range`.
+bool moved(const SE3& a, const SE3& b, double tolerance, double range) {
+  const double shift = (a.translation() - b.translation()).norm();
+  const double turn = rotation_angle(a.quaternion().conjugate() * b.quaternion()) * range;
+  return shift > tolerance || turn > tolerance;
+}
+
+}  // namespace
+
+bool OccupancyMap::correct(const std::unordered_map<KeyframeId, SE3>& T_w_c, bool listed_only) {
+  Impl& m = *impl_;
+  // The listed keyframes that are stored, by id, with their world motion (new * old^-1).
+  std::map<KeyframeId, SE3> motions;
+  for (const auto& [id, pose] : T_w_c) {
+    const auto found = m.index.find(id);
+    if (found != m.index.end())
+      motions.emplace(id, pose * m.keyframes[found->second].T_w_c.inverse());
+  }
+  if (motions.empty()) return false;
+  const double tolerance = m.options.rebuild_tolerance * m.options.resolution;
+  bool any = false;
+  for (auto& kf : m.keyframes) {
+    SE3 pose;
+    const auto listed = T_w_c.find(kf.id);
+    if (listed != T_w_c.end()) {
+      pose = listed->second;
+    } else if (listed_only) {
+      continue;
+    } else {  // the closest earlier listed keyframe's motion; none earlier: it stays
+      auto ref = motions.upper_bound(kf.id);
+      if (ref == motions.begin()) continue;
+      pose = std::prev(ref)->second * kf.T_w_c;
+    }
+    if (moved(kf.T_w_c, pose, tolerance, m.options.max_range)) any = true;
+    kf.T_w_c = pose;
+  }
+  if (any) m.reintegrate_all();
+  return any;
+}
+
+void OccupancyMap::rebuild() { impl_->reintegrate_all(); }
+
+VoxelState OccupancyMap::state(const Eigen::Vector3d& p) const {
+  const octomap::OcTreeNode* node = impl_->tree.search(p.x(), p.y(), p.z());
+  if (node == nullptr) return VoxelState::kUnknown;
+  return impl_->tree.isNodeOccupied(node) ? VoxelState::kOccupied : VoxelState::kFree;
+}
+
+std::vector<OccupiedVoxel> OccupancyMap::occupied_voxels() const {
+  const Impl& m = *impl_;
+  std::vector<OccupiedVoxel> voxels;
+  for (auto it = m.tree.begin_leafs(), end = m.tree.end_leafs(); it != end; ++it) {
+    if (!m.tree.isNodeOccupied(*it)) continue;
+    OccupiedVoxel v;
+    const octomap::point3d c = it.getCoordinate();
+    v.centre = {c.x(), c.y(), c.z()};
+    v.size = it.getSize();
+    const auto colour = m.colours.find(it.getKey());
+    if (colour != m.colours.end() && colour->second.n > 0) {
+      const ColourSum& s = colour->second;
+      v.rgb = {static_cast<std::uint8_t>(s.r / s.n), static_cast<std::uint8_t>(s.g / s.n),
+               static_cast<std::uint8_t>(s.b / s.n)};
+      v.has_colour = true;
+    }
+    voxels.push_back(v);
+  }
+  std::sort(voxels.begin(), voxels.end(), [](const OccupiedVoxel& a, const OccupiedVoxel& b) {
+    return std::tie(a.centre.z(), a.centre.y(), a.centre.x()) <
+           std::tie(b.centre.z(), b.centre.y(), b.centre.x());
+  });
+  return voxels;
+}
+
+OccupancyStats OccupancyMap::stats() const {
+  const Impl& m = *impl_;
+  OccupancyStats s;
+  s.keyframes = m.keyframes.size();
+  const double res = m.tree.getResolution();
+  for (auto it = m.tree.begin_leafs(), end = m.tree.end_leafs(); it != end; ++it) {
+    ++s.leaf_nodes;
+    const std::size_t n = detail::voxels_in_leaf(it.getSize(), res);
+    (m.tree.isNodeOccupied(*it) ? s.occupied_voxels : s.free_voxels) += n;
+  }
+  s.integration_ms = compute_stats(m.insert_ms);
+  s.rebuilds = m.rebuilds;
+  s.last_rebuild_ms = m.last_rebuild_ms;
+  s.octree_bytes = m.tree.memoryUsage();
+  for (const auto& kf : m.keyframes) s.keyframe_bytes += kf.bytes() + sizeof(KeyframeSamples);
+  // An unordered_map node: the key, the value, the next pointer and the cached hash, and one
+  // bucket pointer.
+  s.colour_bytes = m.colours.size() * (sizeof(octomap::OcTreeKey) + sizeof(ColourSum) + 3 * 8);
+  return s;
+}
+
+const OccupancyOptions& OccupancyMap::options() const { return impl_->options; }
+const std::vector<KeyframeSamples>& OccupancyMap::keyframes() const { return impl_->keyframes; }
+const octomap::OcTree& OccupancyMap::octree() const { return impl_->tree; }
+
+}  // namespace mcslam::mapping

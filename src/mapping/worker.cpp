@@ -1,0 +1,93 @@
+#include "mcslam/mapping/worker.hpp"
+
+#include <utility>
+
+#include "mapping/thread_failure.hpp"
+#include "mcslam/core/worker.hpp"
+
+namespace mcslam::mapping {
+
+MappingWorker::MappingWorker(const OccupancyOptions& options, const std::string& thread_name)
+    : map_(options),
+      failure_(std::make_unique<detail::ThreadFailure>(thread_name)),
+      worker_(std::make_unique<Worker>(thread_name)) {}
+
+MappingWorker::~MappingWorker() { worker_.reset(); }
+
+void MappingWorker::run(const std::function<void(OccupancyMap&)>& job) {
+  ++pending_;
+  worker_->post([this, job] {
+    // The thread body: an exception is kept, never let out, and stops the work that follows.
+    if (!failure_->failed()) {
+      try {
+        const std::lock_guard<std::mutex> lock(map_mutex_);
+        job(map_);
+        ++version_;
+      } catch (...) {
+        failure_->set(std::current_exception());
+      }
+    }
+    --pending_;
+  });
+}
+
+void MappingWorker::enqueue(const KeyframeDepth& keyframe) {
+  if (!worker_ || failure_->failed()) return;  // finished or failed: dropped
+  auto copy = std::make_shared<KeyframeDepth>(keyframe);
+  copy->depth = keyframe.depth.clone();
+  copy->dynamic_mask = keyframe.dynamic_mask.clone();
+  copy->colour = keyframe.colour.clone();
+  run([copy](OccupancyMap& map) { map.insert(*copy); });
+}
+
+void MappingWorker::enqueue_shared(KeyframeDepth keyframe) {
+  if (!worker_ || failure_->failed()) return;  // finished or failed: dropped
+  auto shared = std::make_shared<KeyframeDepth>(std::move(keyframe));
+  run([shared](OccupancyMap& map) { map.insert(*shared); });
+}
+
+void MappingWorker::correct(std::unordered_map<KeyframeId, SE3> T_w_c, bool listed_only) {
+  if (!worker_ || failure_->failed()) return;  // finished or failed: dropped
+  auto poses = std::make_shared<std::unordered_map<KeyframeId, SE3>>(std::move(T_w_c));
+  run([poses, listed_only](OccupancyMap& map) { map.correct(*poses, listed_only); });
+}
+
+void MappingWorker::set_floor(std::optional<FloorPlane> floor) {
+  const std::lock_guard<std::mutex> lock(map_mutex_);
+  floor_ = floor;
+  cached_.reset();
+}
+
+std::shared_ptr<const OccupancySnapshot> MappingWorker::snapshot() const {
+  const std::lock_guard<std::mutex> lock(map_mutex_);
+  if (cached_ && cached_->version == version_) return cached_;
+  auto s = std::make_shared<OccupancySnapshot>();
+  s->version = version_;
+  s->grid = map_.grid(floor_);
+  s->voxels = map_.occupied_voxels();
+  s->stats = map_.stats();
+  cached_ = std::move(s);
+  return cached_;
+}
+
+void MappingWorker::with_map(const std::function<void(const OccupancyMap&)>& fn) const {
+  const std::lock_guard<std::mutex> lock(map_mutex_);
+  fn(map_);
+}
+
+std::size_t MappingWorker::pending() const { return pending_.load(); }
+
+void MappingWorker::wait() {
+  if (worker_) worker_->wait();
+  failure_->throw_if_failed();
+}
+
+void MappingWorker::finish() {
+  worker_.reset();  // runs what is queued, then joins
+  failure_->throw_if_failed();
+}
+
+bool MappingWorker::failed() const { return failure_->failed(); }
+std::string MappingWorker::failure_message() const { return failure_->message(); }
+
+}  // namespace mcslam::mapping

@@ -1,0 +1,242 @@
+#include "mcslam/mapping/occupancy_map.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cstdio>
+
+#include "mapping/box_world.hpp"
+#include "mcslam/core/error.hpp"
+#include "mcslam/mapping/evaluation.hpp"
+#include "support/test_camera.hpp"
+
+namespace mcslam::mapping {
+namespace {
+
+using test::BoxWorld;
+using test::look;
+using test::WorldBox;
+
+/// Keyframes 2.7-3.3 m in front of the +x wall (x = 5.987), moving sideways and turning a little.
+std::vector<SE3> wall_path(int n) {
+  std::vector<SE3> poses;
+  for (int i = 0; i < n; ++i) {
+    const double s = n == 1 ? 0.0 : static_cast<double>(i) / (n - 1) - 0.5;
+    poses.push_back(look({2.7 + 0.3 * s, 2.5 + 0.8 * s, 1.2}, -0.3 * s));
+  }
+  return poses;
+}
+
+void insert_all(OccupancyMap& map, const BoxWorld& world, const std::vector<SE3>& poses,
+                KeyframeId first_id = 0) {
+  const PinholeCamera cam = test::make_camera();
+  for (std::size_t i = 0; i < poses.size(); ++i)
+    map.insert(world.render(first_id + i, poses[i], cam));
+}
+
+/// The share of grid points p(a, b) (a, b in [0, 1]) in `expected` state.
+double share_in_state(const OccupancyMap& map, VoxelState expected,
+                      const std::function<Eigen::Vector3d(double, double)>& p, int n = 20) {
+  int hits = 0;
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j)
+      if (map.state(p((i + 0.5) / n, (j + 0.5) / n)) == expected) ++hits;
+  return static_cast<double>(hits) / (n * n);
+}
+
+std::size_t occupied_inside(const OccupancyMap& map, const WorldBox& box, double margin) {
+  std::size_t n = 0;
+  for (const auto& v : map.occupied_voxels())
+    if (box.contains(v.centre, margin)) ++n;
+  return n;
+}
+
+TEST(OccupancyMap, WallSeenFromSeveralKeyframesIsOccupiedAndTheSpaceInFrontFree) {
+  BoxWorld world;
+  OccupancyMap map;
+  insert_all(map, world, wall_path(5));
+  const double wall = world.room_max.x() - 0.01;
+  // The part of the wall that every keyframe sees, and the space in front of it within every
+  // keyframe's view: y in [1.7, 3.3], z in [0.4, 1.4] (the view's top edge is 1.53 m high at
+  // x = 4.5).
+  const auto on_wall = [&](double x) {
+    return [x](double a, double b) { return Eigen::Vector3d(x, 1.7 + 1.6 * a, 0.4 + 1.0 * b); };
+  };
+  EXPECT_GE(share_in_state(map, VoxelState::kOccupied, on_wall(wall)), 0.99);
+  EXPECT_GE(share_in_state(map, VoxelState::kFree, on_wall(wall - 0.12)), 0.99);
+  EXPECT_GE(share_in_state(map, VoxelState::kFree, on_wall(4.5)), 0.99);
+  // Behind the wall and behind the cameras nothing is known.
+  EXPECT_GE(share_in_state(map, VoxelState::kUnknown, on_wall(world.room_max.x() + 0.2)), 0.99);
+  EXPECT_GE(share_in_state(map, VoxelState::kUnknown, on_wall(1.0)), 0.99);
+  // The floor in view is occupied, the air above it free.
+  EXPECT_EQ(map.state({4.5, 2.5, 0.03}), VoxelState::kOccupied);
+  EXPECT_EQ(map.state({4.5, 2.5, 0.2}), VoxelState::kFree);
+  // No occupied voxel off the room's surfaces.
+  const MapQuality q = evaluate_map(map, world.static_surfaces());
+  EXPECT_EQ(q.ghosts, 0u) << q.occupied << " occupied";
+  const OccupancyStats s = map.stats();
+  std::printf(
+      "[ wall ] 5 keyframes: %zu occupied, %zu free voxels, %zu leaves, insert median "
+      "%.1f ms p95 %.1f ms\n",
+      s.occupied_voxels, s.free_voxels, s.leaf_nodes, s.integration_ms.median,
+      s.integration_ms.p95);
+}
+
+TEST(OccupancyMap, DynamicPixelsAreNeverOccupiedButFreeTheirRay) {
+  BoxWorld world;
+  const WorldBox person{{4.3, 2.3, 0.012}, {4.7, 2.7, 1.75}, true, {0, 0, 255}};
+  world.boxes.push_back(person);
+  OccupancyMap masked;
+  insert_all(masked, world, wall_path(5));
+  // Above the floor's voxels, nothing of the person is occupied.
+  WorldBox body = person;
+  body.min.z() = 0.1;
+  EXPECT_EQ(occupied_inside(masked, body, 0.05), 0u);
+  // The space between the cameras and the person is free.
+  const auto before = [](double a, double b) {
+    return Eigen::Vector3d(3.8 + 0.4 * a, 2.45 + 0.1 * b, 0.8 + 0.5 * b);
+  };
+  EXPECT_GE(share_in_state(masked, VoxelState::kFree, before), 0.99);
+  // The person is there: with the mask off, it is in the map.
+  world.boxes.back().dynamic = false;
+  OccupancyMap unmasked;
+  insert_all(unmasked, world, wall_path(5));
+  EXPECT_GT(occupied_inside(unmasked, body, 0.05), 50u);
+}
+
+TEST(OccupancyMap, PushedChairIsOccupiedWhereItIsAndItsFirstPlaceFree) {
+  const WorldBox first{{4.0, 1.9, 0.012}, {4.45, 2.35, 0.9}, false, {30, 120, 30}};
+  WorldBox last = first;
+  last.min.y() += 1.0;
+  last.max.y() += 1.0;
+  BoxWorld world;
+  world.boxes.push_back(first);
+  const PinholeCamera cam = test::make_camera();
+  OccupancyMap map;
+  // 16 keyframes 1.8 m in front of the chair's places, moving sideways across both.
+  std::vector<SE3> poses;
+  for (int i = 0; i < 16; ++i) poses.push_back(look({2.2, 2.0 + i / 15.0, 1.2}, 0.0, 0.35));
+  for (std::size_t i = 0; i < poses.size(); ++i) {
+    // Keyframes 0-4 see it at its first place, 5-15 (11, more than the 9 misses a voxel at
+    // clamp_max needs) at its last place.
+    if (i == 5) world.boxes[0] = last;
+    map.insert(world.render(i, poses[i], cam));
+  }
+  WorldBox above_floor = first;
+  above_floor.min.z() = 0.1;
+  EXPECT_EQ(occupied_inside(map, above_floor, 0.0), 0u);
+  EXPECT_EQ(map.state({4.2, 2.1, 0.5}), VoxelState::kFree);
+  above_floor = last;
+  above_floor.min.z() = 0.1;
+  EXPECT_GT(occupied_inside(map, above_floor, 0.05), 100u);
+  EXPECT_EQ(map.state({last.min.x() + 0.01, 0.5 * (last.min.y() + last.max.y()), 0.5}),
+            VoxelState::kOccupied);
+  EXPECT_EQ(map.state({last.min.x() + 0.01, last.min.y() + 0.2, last.max.z() - 0.01}),
+            VoxelState::kOccupied);
+  // Its voxels keep the chair's colour (green, BGR 30,120,30).
+  bool green = false;
+  for (const auto& v : map.occupied_voxels())
+    if (last.contains(v.centre, 0.0) && v.has_colour && v.rgb[1] == 120) green = true;
+  EXPECT_TRUE(green);
+}
+
+TEST(OccupancyMap, CorrectionRebuildsWithoutADoubledWall) {
+  BoxWorld world;
+  const PinholeCamera cam = test::make_camera();
+  const auto poses = wall_path(8);
+  OccupancyMap map;
+  std::unordered_map<KeyframeId, SE3> corrected;
+  for (std::size_t i = 0; i < poses.size(); ++i) {
+    auto kf = world.render(i, poses[i], cam);
+    if (i >= 4) {  // odometry drifted by 20 cm along x: these put the wall 20 cm too far
+      kf.T_w_c.set_translation(kf.T_w_c.translation() + Eigen::Vector3d(0.2, 0.0, 0.0));
+      corrected[i] = poses[i];
+    }
+    map.insert(kf);
+  }
+  const auto surfaces = world.static_surfaces();
+  const MapQuality drifted = evaluate_map(map, surfaces);
+  EXPECT_GT(drifted.ghost_rate, 0.05) << "the drifted keyframes double the wall";
+  EXPECT_TRUE(map.correct(corrected));
+  const MapQuality fixed = evaluate_map(map, surfaces);
+  EXPECT_LE(fixed.ghost_rate, 0.01);
+  EXPECT_EQ(fixed.ghosts, 0u);
+  // Rebuilt from the stored samples, it is the map the true poses give.
+  OccupancyMap truth;
+  insert_all(truth, world, poses);
+  EXPECT_EQ(map.stats().occupied_voxels, truth.stats().occupied_voxels);
+  EXPECT_EQ(map.stats().free_voxels, truth.stats().free_voxels);
+  // Poses that did not move (or moved less than a quarter voxel) do not rebuild.
+  EXPECT_FALSE(map.correct(corrected));
+  const OccupancyStats s = map.stats();
+  EXPECT_EQ(s.rebuilds, 1u);
+  // A correction that lists only some keyframes: the others follow the closest earlier listed
+  // one (keyframes 5-7 keyframe 4) or, with none earlier, stay (keyframes 0-3).
+  const SE3 drift(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.2, 0.0, 0.0));
+  EXPECT_TRUE(map.correct(
+      {{4, drift * poses[4]}, {5, drift * poses[5]}, {6, drift * poses[6]}, {7, drift * poses[7]}},
+      true));
+  EXPECT_GT(evaluate_map(map, surfaces).ghost_rate, 0.05);
+  EXPECT_TRUE(map.correct({{4, poses[4]}}));
+  EXPECT_EQ(evaluate_map(map, surfaces).ghosts, 0u);
+  EXPECT_EQ(map.stats().occupied_voxels, truth.stats().occupied_voxels);
+  std::printf(
+      "[ correction ] ghost rate drifted %.3f, corrected %.4f; rebuild of %zu keyframes "
+      "%.1f ms\n",
+      drifted.ghost_rate, fixed.ghost_rate, s.keyframes, s.last_rebuild_ms);
+}
+
+TEST(OccupancyMap, MemoryPerKeyframeIsBounded) {
+  BoxWorld world;
+  OccupancyMap map;
+  insert_all(map, world, wall_path(4));
+  const OccupancyStats s = map.stats();
+  ASSERT_EQ(s.keyframes, 4u);
+  // VGA at step 3: 213 x 160 samples of 2 (depth) + 1 (mask) + 3 (colour) bytes = 204,480.
+  const auto& kf = map.keyframes().front();
+  EXPECT_EQ(kf.step, 3);
+  EXPECT_EQ(kf.depth_mm.cols, 213);
+  EXPECT_EQ(kf.depth_mm.rows, 160);
+  EXPECT_EQ(kf.bytes(), 213u * 160u * 6u);
+  EXPECT_LT(s.keyframe_bytes_each(), 210000.0);
+  OccupancyOptions no_colour;
+  no_colour.store_colour = false;
+  OccupancyMap grey(no_colour);
+  insert_all(grey, world, wall_path(1));
+  EXPECT_EQ(grey.keyframes().front().bytes(), 213u * 160u * 3u);
+  std::printf(
+      "[ memory ] %.0f bytes per keyframe (%.0f without colour); octree %zu bytes, "
+      "colours %zu bytes, %zu in all for 4 keyframes\n",
+      s.keyframe_bytes_each(), grey.stats().keyframe_bytes_each(), s.octree_bytes, s.colour_bytes,
+      s.total_bytes());
+}
+
+TEST(OccupancyMap, FarMeasurementsFreeTheirRayUpToMaxRangeOnly) {
+  BoxWorld world;
+  OccupancyOptions o;
+  o.max_range = 2.0;
+  OccupancyMap map(o);
+  // 3.3 m from the wall, the wall is beyond max_range: nothing occupied on it, the first
+  // 2 m of every ray free.
+  insert_all(map, world, {look({2.7, 2.5, 1.2}, 0.0, 0.0)});
+  EXPECT_EQ(map.state({world.room_max.x() - 0.01, 2.5, 1.2}), VoxelState::kUnknown);
+  EXPECT_EQ(map.state({4.5, 2.5, 1.2}), VoxelState::kFree);
+  EXPECT_EQ(map.state({5.2, 2.5, 1.2}), VoxelState::kUnknown);
+}
+
+TEST(OccupancyMap, RejectsImagesThatDoNotMatchTheCamera) {
+  BoxWorld world;
+  OccupancyMap map;
+  auto kf = world.render(7, wall_path(1)[0], test::make_camera());
+  kf.dynamic_mask = cv::Mat::zeros(10, 10, CV_8UC1);
+  try {
+    map.insert(kf);
+    ADD_FAILURE() << "expected InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("keyframe 7"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("dynamic mask"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(map.stats().keyframes, 0u);
+}
+
+}  // namespace
+}  // namespace mcslam::mapping
