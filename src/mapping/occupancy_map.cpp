@@ -37,6 +37,21 @@ std::uint16_t to_millimetres(float z) {
   return static_cast<std::uint16_t>(std::min(65535.0f, std::max(1.0f, std::round(z * 1000.0f))));
 }
 
+/// The median of a block's valid depths (0 when none): one of them, so that a block across a
+/// depth edge takes one side's depth and never a depth between the two.
+float block_median(const cv::Mat& depth, std::vector<float>& values) {
+  values.clear();
+  for (int r = 0; r < depth.rows; ++r) {
+    const float* row = depth.ptr<float>(r);
+    for (int c = 0; c < depth.cols; ++c)
+      if (row[c] > 0.0f && std::isfinite(row[c])) values.push_back(row[c]);
+  }
+  if (values.empty()) return 0.0f;
+  const auto middle = values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2);
+  std::nth_element(values.begin(), middle, values.end());
+  return *middle;
+}
+
 }  // namespace
 
 std::size_t KeyframeSamples::bytes() const {
@@ -71,13 +86,14 @@ KeyframeSamples sample_keyframe(const KeyframeDepth& kf, const OccupancyOptions&
   s.depth_mm.create(rows, cols, CV_16UC1);
   s.dynamic = cv::Mat::zeros(rows, cols, CV_8UC1);
   if (colour) s.colour.create(rows, cols, CV_8UC3);
+  std::vector<float> block;
   for (int j = 0; j < rows; ++j) {
-    const int v = j * s.step + offset;
     for (int i = 0; i < cols; ++i) {
-      const int u = i * s.step + offset;
-      s.depth_mm.at<std::uint16_t>(j, i) = to_millimetres(kf.depth.at<float>(v, u));
-      if (!mask.empty()) s.dynamic.at<std::uint8_t>(j, i) = mask.at<std::uint8_t>(v, u) ? 1 : 0;
-      if (colour) s.colour.at<cv::Vec3b>(j, i) = kf.colour.at<cv::Vec3b>(v, u);
+      const cv::Rect cell(i * s.step, j * s.step, s.step, s.step);
+      s.depth_mm.at<std::uint16_t>(j, i) = to_millimetres(block_median(kf.depth(cell), block));
+      if (!mask.empty()) s.dynamic.at<std::uint8_t>(j, i) = cv::countNonZero(mask(cell)) > 0;
+      if (colour)
+        s.colour.at<cv::Vec3b>(j, i) = kf.colour.at<cv::Vec3b>(cell.y + offset, cell.x + offset);
     }
   }
   return s;

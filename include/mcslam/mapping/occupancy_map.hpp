@@ -47,8 +47,10 @@ struct KeyframeDepth {
   cv::Mat colour;
 };
 
-/// A keyframe as the map keeps it: its depth sampled every `step` pixels. Sample (i, j) is
-/// pixel (i * step + (step - 1) / 2, j * step + (step - 1) / 2) of the full image.
+/// A keyframe as the map keeps it: its depth sampled in blocks of step x step pixels. Sample
+/// (i, j) is the block whose first pixel is (i * step, j * step), located at its centre
+/// (i * step + (step - 1) / 2.0, j * step + (step - 1) / 2.0): the median of the block's valid
+/// depths, dynamic when any pixel of the block is (OccupancyOptions::pixel_step).
 struct KeyframeSamples {
   KeyframeId id = 0;
   SE3 T_w_c;
