@@ -230,16 +230,27 @@ void OccupancyMap::insert(const KeyframeDepth& keyframe) {
   impl_->insert_ms.back() = watch.elapsed_ms();
 }
 
+namespace {
+
+void check_samples(const KeyframeSamples& s) {
+  const std::string what = "keyframe " + std::to_string(s.id) + ": ";
+  if (auto problem = s.camera.check()) throw InputError(what + *problem);
+  if (s.step < 1 || s.step > 64) throw InputError(what + "the sample step must be in [1, 64]");
+  const cv::Size size(s.camera.width / s.step, s.camera.height / s.step);
+  if (s.depth_mm.type() != CV_16UC1 || s.depth_mm.size() != size || s.dynamic.type() != CV_8UC1 ||
+      s.dynamic.size() != size ||
+      (!s.colour.empty() && (s.colour.type() != CV_8UC3 || s.colour.size() != size)))
+    throw InputError(what + "samples must be CV_16UC1 depth, CV_8UC1 mask (and CV_8UC3 colour) " +
+                     "of the camera's size over the step, " + std::to_string(size.width) + "x" +
+                     std::to_string(size.height));
+}
+
+}  // namespace
+
 void OccupancyMap::insert(KeyframeSamples samples) {
   Stopwatch watch;
   Impl& m = *impl_;
-  if (samples.depth_mm.type() != CV_16UC1 || samples.dynamic.type() != CV_8UC1 ||
-      samples.dynamic.size() != samples.depth_mm.size() ||
-      (!samples.colour.empty() &&
-       (samples.colour.type() != CV_8UC3 || samples.colour.size() != samples.depth_mm.size())))
-    throw InputError("keyframe " + std::to_string(samples.id) +
-                     ": samples must be CV_16UC1 depth, CV_8UC1 mask (and CV_8UC3 colour) of "
-                     "one size");
+  check_samples(samples);
   const auto found = m.index.find(samples.id);
   if (found != m.index.end()) {
     m.keyframes[found->second] = std::move(samples);

@@ -236,6 +236,29 @@ TEST(OccupancyMap, RejectsImagesThatDoNotMatchTheCamera) {
     EXPECT_NE(std::string(e.what()).find("dynamic mask"), std::string::npos) << e.what();
   }
   EXPECT_EQ(map.stats().keyframes, 0u);
+  // Stored samples (from a saved session) are checked too.
+  kf.dynamic_mask.release();
+  KeyframeSamples samples = sample_keyframe(kf, map.options());
+  samples.depth_mm = cv::Mat::zeros(5, 5, CV_16UC1);
+  EXPECT_THROW(map.insert(samples), InputError);
+}
+
+TEST(OccupancyMap, StoredSamplesRebuildTheSameMap) {
+  // What a saved session keeps (keyframes()) inserted into a new map gives the same map.
+  BoxWorld world;
+  world.boxes.push_back({{4.0, 2.3, 0.012}, {4.45, 2.75, 0.9}, false, {30, 120, 30}});
+  OccupancyMap map;
+  insert_all(map, world, wall_path(3));
+  OccupancyMap loaded;
+  for (const auto& samples : map.keyframes()) loaded.insert(samples);
+  EXPECT_EQ(loaded.stats().occupied_voxels, map.stats().occupied_voxels);
+  EXPECT_EQ(loaded.stats().free_voxels, map.stats().free_voxels);
+  EXPECT_EQ(loaded.occupied_voxels().size(), map.occupied_voxels().size());
+  // A keyframe given again replaces the stored one (and rebuilds).
+  loaded.insert(map.keyframes().front());
+  EXPECT_EQ(loaded.stats().keyframes, 3u);
+  EXPECT_EQ(loaded.stats().rebuilds, 1u);
+  EXPECT_EQ(loaded.stats().occupied_voxels, map.stats().occupied_voxels);
 }
 
 }  // namespace
