@@ -50,7 +50,7 @@ int count_views(const OccupancyMap& map, const Eigen::Vector3d& p_world) {
     const int j = static_cast<int>(std::lround((uv.y() - offset) / kf.step));
     if (i < 0 || j < 0 || i >= kf.depth_mm.cols || j >= kf.depth_mm.rows) continue;
     const std::uint16_t mm = kf.depth_mm.at<std::uint16_t>(j, i);
-    if (mm == 0 || kf.dynamic.at<std::uint8_t>(j, i) != 0) continue;
+    if (mm == 0 || kf.kind.at<std::uint8_t>(j, i) != KeyframeSamples::kStatic) continue;
     const double tolerance = 0.5 * o.resolution + 3.0 * o.depth_sigma(p_c.z());
     if (std::abs(1e-3 * mm - p_c.z()) <= tolerance) ++views;
   }

@@ -48,6 +48,12 @@ std::string image_reference(const std::string& pgm_path, const std::string& yaml
   return pgm.lexically_normal().string();
 }
 
+nlohmann::json matrix_rows(const Eigen::Matrix4d& T) {
+  nlohmann::json rows = nlohmann::json::array();
+  for (int r = 0; r < 4; ++r) rows.push_back({T(r, 0), T(r, 1), T(r, 2), T(r, 3)});
+  return rows;
+}
+
 }  // namespace
 
 void write_octomap_binary(const OccupancyMap& map, const std::string& path) {
@@ -110,6 +116,41 @@ void write_occupied_voxels_ply(const OccupancyMap& map, const std::string& path)
     out.write(reinterpret_cast<const char*>(v.rgb.data()), 3);
   }
   finish_output(out, path);
+}
+
+nlohmann::json occupancy_summary(const OccupancyStats& stats, const OccupancyGrid& grid) {
+  const auto& f = grid.floor;
+  return {
+      {"resolution", grid.resolution},
+      {"grid",
+       {{"width", grid.width},
+        {"height", grid.height},
+        {"origin", {grid.origin.x(), grid.origin.y()}},
+        {"T_world_grid", matrix_rows(grid.T_world_grid)},
+        {"T_world_floor", matrix_rows(grid.T_world_floor)},
+        {"floor",
+         {{"normal", {f.normal.x(), f.normal.y(), f.normal.z()}},
+          {"d", f.d},
+          {"estimated", grid.floor_estimated}}},
+        {"cells",
+         {{"occupied", grid.count(OccupancyGrid::kOccupied)},
+          {"free", grid.count(OccupancyGrid::kFree)},
+          {"unknown", grid.count(OccupancyGrid::kUnknown)}}}}},
+      {"voxels", {{"occupied", stats.occupied_voxels}, {"free", stats.free_voxels}}},
+      {"keyframes", stats.keyframes},
+      {"time_per_keyframe_ms",
+       {{"median", stats.integration_ms.median},
+        {"p95", stats.integration_ms.p95},
+        {"max", stats.integration_ms.max}}},
+      {"rebuilds", stats.rebuilds},
+      {"last_rebuild_ms", stats.last_rebuild_ms},
+      {"memory_bytes",
+       {{"octree", stats.octree_bytes},
+        {"keyframes", stats.keyframe_bytes},
+        {"colours", stats.colour_bytes},
+        {"total", stats.total_bytes()},
+        {"per_keyframe", stats.keyframe_bytes_each()}}},
+  };
 }
 
 }  // namespace mcslam::mapping

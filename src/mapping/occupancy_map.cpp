@@ -37,11 +37,26 @@ std::uint16_t to_millimetres(float z) {
   return static_cast<std::uint16_t>(std::min(65535.0f, std::max(1.0f, std::round(z * 1000.0f))));
 }
 
+/// The median of a block's valid depths (0 when none): one of them, so that a block across a
+/// depth edge takes one side's depth and never a depth between the two.
+float block_median(const cv::Mat& depth, std::vector<float>& values) {
+  values.clear();
+  for (int r = 0; r < depth.rows; ++r) {
+    const float* row = depth.ptr<float>(r);
+    for (int c = 0; c < depth.cols; ++c)
+      if (row[c] > 0.0f && std::isfinite(row[c])) values.push_back(row[c]);
+  }
+  if (values.empty()) return 0.0f;
+  const auto middle = values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2);
+  std::nth_element(values.begin(), middle, values.end());
+  return *middle;
+}
+
 }  // namespace
 
 std::size_t KeyframeSamples::bytes() const {
   const auto size = [](const cv::Mat& m) { return m.empty() ? 0 : m.total() * m.elemSize(); };
-  return size(depth_mm) + size(dynamic) + size(colour);
+  return size(depth_mm) + size(kind) + size(colour);
 }
 
 KeyframeSamples sample_keyframe(const KeyframeDepth& kf, const OccupancyOptions& options) {
@@ -50,6 +65,7 @@ KeyframeSamples sample_keyframe(const KeyframeDepth& kf, const OccupancyOptions&
   if (kf.depth.empty()) throw InputError("keyframe " + std::to_string(kf.id) + ": no depth image");
   check_image(kf.depth, CV_32FC1, kf, "depth");
   check_image(kf.dynamic_mask, CV_8UC1, kf, "dynamic mask");
+  check_image(kf.mover_mask, CV_8UC1, kf, "mover mask");
   check_image(kf.colour, CV_8UC3, kf, "colour");
 
   KeyframeSamples s;
@@ -69,15 +85,20 @@ KeyframeSamples sample_keyframe(const KeyframeDepth& kf, const OccupancyOptions&
   }
   const bool colour = options.store_colour && !kf.colour.empty();
   s.depth_mm.create(rows, cols, CV_16UC1);
-  s.dynamic = cv::Mat::zeros(rows, cols, CV_8UC1);
+  s.kind = cv::Mat::zeros(rows, cols, CV_8UC1);
   if (colour) s.colour.create(rows, cols, CV_8UC3);
+  std::vector<float> block;
   for (int j = 0; j < rows; ++j) {
-    const int v = j * s.step + offset;
     for (int i = 0; i < cols; ++i) {
-      const int u = i * s.step + offset;
-      s.depth_mm.at<std::uint16_t>(j, i) = to_millimetres(kf.depth.at<float>(v, u));
-      if (!mask.empty()) s.dynamic.at<std::uint8_t>(j, i) = mask.at<std::uint8_t>(v, u) ? 1 : 0;
-      if (colour) s.colour.at<cv::Vec3b>(j, i) = kf.colour.at<cv::Vec3b>(v, u);
+      const cv::Rect cell(i * s.step, j * s.step, s.step, s.step);
+      s.depth_mm.at<std::uint16_t>(j, i) = to_millimetres(block_median(kf.depth(cell), block));
+      std::uint8_t& kind = s.kind.at<std::uint8_t>(j, i);
+      if (!mask.empty() && cv::countNonZero(mask(cell)) > 0)
+        kind = KeyframeSamples::kDynamic;
+      else if (!kf.mover_mask.empty() && cv::countNonZero(kf.mover_mask(cell)) > 0)
+        kind = KeyframeSamples::kMover;
+      if (colour)
+        s.colour.at<cv::Vec3b>(j, i) = kf.colour.at<cv::Vec3b>(cell.y + offset, cell.x + offset);
     }
   }
   return s;
@@ -98,6 +119,8 @@ struct OccupancyMap::Impl {
   octomap::KeySet free_keys;
   octomap::KeySet hit_keys;
   octomap::KeySet free_ends;
+  octomap::KeySet mover_keys;     ///< hit by a mover's samples (and no static one) this keyframe
+  octomap::KeySet volatile_keys;  ///< voxels a mover marked last (across keyframes)
   octomap::KeyRay ray;
 
   explicit Impl(const OccupancyOptions& o) : options(o), tree(o.resolution) {
@@ -123,11 +146,11 @@ struct OccupancyMap::Impl {
 
   /// The voxels within +-sigma of the point p = o + z * dir_z (dir_z: the ray at unit depth).
   void add_hit(const Eigen::Vector3d& o, const Eigen::Vector3d& dir_z, double z, double sigma,
-               const cv::Vec3b* bgr) {
+               const cv::Vec3b* bgr, octomap::KeySet& keys) {
     const Eigen::Vector3d p = o + z * dir_z;
     octomap::OcTreeKey key;
     if (!tree.coordToKeyChecked(p.x(), p.y(), p.z(), key)) return;
-    hit_keys.insert(key);
+    keys.insert(key);
     if (bgr != nullptr) {
       ColourSum& c = colours[key];
       c.b += (*bgr)[0];
@@ -139,8 +162,18 @@ struct OccupancyMap::Impl {
     const Eigen::Vector3d near = o + (z - sigma) * dir_z;
     const Eigen::Vector3d far = o + (z + sigma) * dir_z;
     if (tree.computeRayKeys(detail::to_point(near), detail::to_point(far), ray))
-      hit_keys.insert(ray.begin(), ray.end());
-    if (tree.coordToKeyChecked(far.x(), far.y(), far.z(), key)) hit_keys.insert(key);
+      keys.insert(ray.begin(), ray.end());
+    if (tree.coordToKeyChecked(far.x(), far.y(), far.z(), key)) keys.insert(key);
+  }
+
+  /// Sets a voxel to `bound` moved by `update` when that is further (a mover's voxel: occupied
+  /// at once, or free at once).
+  void set_at_least_past(const octomap::OcTreeKey& key, float update) {
+    const octomap::OcTreeNode* node = tree.search(key);
+    const float now = node != nullptr ? node->getLogOdds() : 0.0f;
+    const float bound = tree.getOccupancyThresLog();
+    tree.setNodeValue(
+        key, update > 0.0f ? std::max(now, bound) + update : std::min(now, bound) + update, true);
   }
 
   void collect(const KeyframeSamples& s);
@@ -169,8 +202,10 @@ void OccupancyMap::Impl::collect(const KeyframeSamples& s) {
       const double sigma = options.depth_sigma(z);
       const double z_free = z - options.free_margin_sigmas * sigma;
       if (z_free > 0.0) add_free(o, o + z_free * dir_z);
-      if (s.dynamic.at<std::uint8_t>(j, i) != 0) continue;
-      add_hit(o, dir_z, z, sigma, s.colour.empty() ? nullptr : &s.colour.at<cv::Vec3b>(j, i));
+      const std::uint8_t kind = s.kind.at<std::uint8_t>(j, i);
+      if (kind == KeyframeSamples::kDynamic) continue;
+      add_hit(o, dir_z, z, sigma, s.colour.empty() ? nullptr : &s.colour.at<cv::Vec3b>(j, i),
+              kind == KeyframeSamples::kMover ? mover_keys : hit_keys);
     }
   }
 }
@@ -179,11 +214,29 @@ void OccupancyMap::Impl::integrate(const KeyframeSamples& s) {
   free_keys.clear();
   hit_keys.clear();
   free_ends.clear();
+  mover_keys.clear();
   collect(s);
-  // A voxel that one measurement of the keyframe hit is not freed by another one passing by.
-  for (const auto& key : hit_keys) free_keys.erase(key);
-  for (const auto& key : free_keys) tree.updateNode(key, miss_log, true);
-  for (const auto& key : hit_keys) tree.updateNode(key, hit_log, true);
+  // A voxel that one measurement of the keyframe hit is not freed by another one passing by; a
+  // static hit makes it static.
+  for (const auto& key : hit_keys) {
+    free_keys.erase(key);
+    mover_keys.erase(key);
+  }
+  for (const auto& key : mover_keys) free_keys.erase(key);
+  for (const auto& key : free_keys) {
+    if (volatile_keys.erase(key) != 0)
+      set_at_least_past(key, miss_log);  // where a mover was: free now
+    else
+      tree.updateNode(key, miss_log, true);
+  }
+  for (const auto& key : hit_keys) {
+    volatile_keys.erase(key);
+    tree.updateNode(key, hit_log, true);
+  }
+  for (const auto& key : mover_keys) {
+    volatile_keys.insert(key);
+    set_at_least_past(key, hit_log);
+  }
   tree.updateInnerOccupancy();
   // Lazy updates leave every voxel a leaf: merge the children that agree (free space at
   // clamp_min, mostly) into their parent.
@@ -194,6 +247,7 @@ void OccupancyMap::Impl::reintegrate_all() {
   Stopwatch watch;
   tree.clear();
   colours.clear();
+  volatile_keys.clear();
   for (const auto& s : keyframes) integrate(s);
   ++rebuilds;
   last_rebuild_ms = watch.elapsed_ms();
@@ -214,16 +268,27 @@ void OccupancyMap::insert(const KeyframeDepth& keyframe) {
   impl_->insert_ms.back() = watch.elapsed_ms();
 }
 
+namespace {
+
+void check_samples(const KeyframeSamples& s) {
+  const std::string what = "keyframe " + std::to_string(s.id) + ": ";
+  if (auto problem = s.camera.check()) throw InputError(what + *problem);
+  if (s.step < 1 || s.step > 64) throw InputError(what + "the sample step must be in [1, 64]");
+  const cv::Size size(s.camera.width / s.step, s.camera.height / s.step);
+  if (s.depth_mm.type() != CV_16UC1 || s.depth_mm.size() != size || s.kind.type() != CV_8UC1 ||
+      s.kind.size() != size ||
+      (!s.colour.empty() && (s.colour.type() != CV_8UC3 || s.colour.size() != size)))
+    throw InputError(what + "samples must be CV_16UC1 depth, CV_8UC1 mask (and CV_8UC3 colour) " +
+                     "of the camera's size over the step, " + std::to_string(size.width) + "x" +
+                     std::to_string(size.height));
+}
+
+}  // namespace
+
 void OccupancyMap::insert(KeyframeSamples samples) {
   Stopwatch watch;
   Impl& m = *impl_;
-  if (samples.depth_mm.type() != CV_16UC1 || samples.dynamic.type() != CV_8UC1 ||
-      samples.dynamic.size() != samples.depth_mm.size() ||
-      (!samples.colour.empty() &&
-       (samples.colour.type() != CV_8UC3 || samples.colour.size() != samples.depth_mm.size())))
-    throw InputError("keyframe " + std::to_string(samples.id) +
-                     ": samples must be CV_16UC1 depth, CV_8UC1 mask (and CV_8UC3 colour) of "
-                     "one size");
+  check_samples(samples);
   const auto found = m.index.find(samples.id);
   if (found != m.index.end()) {
     m.keyframes[found->second] = std::move(samples);

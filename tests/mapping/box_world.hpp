@@ -21,6 +21,7 @@ struct WorldBox {
   Eigen::Vector3d min, max;
   bool dynamic = false;  ///< its pixels are marked in the dynamic mask
   cv::Vec3b bgr{40, 80, 200};
+  bool mover = false;  ///< its pixels are marked in the mover mask
   bool contains(const Eigen::Vector3d& p, double margin = 0.0) const {
     return (p.array() >= min.array() - margin).all() && (p.array() <= max.array() + margin).all();
   }
@@ -69,6 +70,7 @@ struct BoxWorld {
     kf.camera = cam;
     kf.depth = cv::Mat(cam.height, cam.width, CV_32FC1);
     kf.dynamic_mask = cv::Mat::zeros(cam.height, cam.width, CV_8UC1);
+    kf.mover_mask = cv::Mat::zeros(cam.height, cam.width, CV_8UC1);
     kf.colour = cv::Mat(cam.height, cam.width, CV_8UC3);
     const Eigen::Matrix3d R = T_w_c.rotation();
     const Eigen::Vector3d o = T_w_c.translation();
@@ -83,6 +85,7 @@ struct BoxWorld {
         kf.depth.at<float>(v, u) = static_cast<float>(t);
         const bool dynamic = box >= 0 && boxes[box].dynamic;
         kf.dynamic_mask.at<std::uint8_t>(v, u) = dynamic ? 255 : 0;
+        kf.mover_mask.at<std::uint8_t>(v, u) = box >= 0 && boxes[box].mover ? 255 : 0;
         kf.colour.at<cv::Vec3b>(v, u) = box >= 0 ? boxes[box].bgr : cv::Vec3b(180, 180, 180);
       }
     return kf;
@@ -97,7 +100,7 @@ struct BoxWorld {
       s.push_back(mapping::StaticSurface::plane(-n, room_max[a]));
     }
     for (const auto& b : boxes)
-      if (!b.dynamic)
+      if (!b.dynamic && !b.mover)
         s.push_back(mapping::StaticSurface::box(
             SE3(Eigen::Quaterniond::Identity(), 0.5 * (b.min + b.max)), 0.5 * (b.max - b.min)));
     return s;

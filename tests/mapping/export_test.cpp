@@ -164,6 +164,25 @@ TEST_F(ExportTest, PlyHasAHeaderAndOneColouredVertexPerOccupiedVoxel) {
   EXPECT_GT(green, 50u);
 }
 
+TEST_F(ExportTest, SummaryHasTheGridTransformAndTheFigures) {
+  const OccupancyGrid grid = map_->grid();
+  const OccupancyStats stats = map_->stats();
+  const nlohmann::json j = occupancy_summary(stats, grid);
+  EXPECT_DOUBLE_EQ(j["resolution"].get<double>(), 0.05);
+  ASSERT_EQ(j["grid"]["T_world_grid"].size(), 4u);
+  EXPECT_DOUBLE_EQ(j["grid"]["T_world_grid"][0][3].get<double>(), grid.T_world_grid(0, 3));
+  EXPECT_EQ(j["grid"]["width"].get<int>(), grid.width);
+  EXPECT_TRUE(j["grid"]["floor"]["estimated"].get<bool>());
+  const auto& cells = j["grid"]["cells"];
+  EXPECT_EQ(cells["occupied"].get<std::size_t>() + cells["free"].get<std::size_t>() +
+                cells["unknown"].get<std::size_t>(),
+            grid.cells.size());
+  EXPECT_EQ(j["voxels"]["occupied"].get<std::size_t>(), stats.occupied_voxels);
+  EXPECT_EQ(j["keyframes"].get<std::size_t>(), 3u);
+  EXPECT_GT(j["time_per_keyframe_ms"]["median"].get<double>(), 0.0);
+  EXPECT_EQ(j["memory_bytes"]["total"].get<std::size_t>(), stats.total_bytes());
+}
+
 TEST_F(ExportTest, UnwritableOutputsNameTheFile) {
   const std::string missing = dir_.file("no/such/folder/");
   const OccupancyGrid grid = map_->grid();

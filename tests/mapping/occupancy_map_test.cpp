@@ -139,6 +139,43 @@ TEST(OccupancyMap, PushedChairIsOccupiedWhereItIsAndItsFirstPlaceFree) {
   EXPECT_TRUE(green);
 }
 
+TEST(OccupancyMap, AMoverIsForgottenWhereItLeftAtOnce) {
+  // The chair pushed after 3 keyframes and seen 2 more times: as a static object its first
+  // place needs 9 keyframes to clear; marked as a mover, the first keyframe seeing through it.
+  const WorldBox first{{4.0, 1.9, 0.012}, {4.45, 2.35, 0.9}, false, {30, 120, 30}, true};
+  WorldBox last = first;
+  last.min.y() += 1.0;
+  last.max.y() += 1.0;
+  const PinholeCamera cam = test::make_camera();
+  std::vector<SE3> poses;
+  for (int i = 0; i < 5; ++i) poses.push_back(look({2.2, 2.2 + 0.15 * i, 1.2}, 0.0, 0.35));
+  const auto build = [&](bool mover) {
+    BoxWorld world;
+    world.boxes.push_back(first);
+    world.boxes[0].mover = mover;
+    OccupancyMap map;
+    for (std::size_t i = 0; i < poses.size(); ++i) {
+      if (i == 3) {
+        world.boxes[0].min = last.min;
+        world.boxes[0].max = last.max;
+      }
+      map.insert(world.render(i, poses[i], cam));
+    }
+    return map;
+  };
+  WorldBox first_above = first, last_above = last;
+  first_above.min.z() = last_above.min.z() = 0.1;
+  const OccupancyMap as_mover = build(true);
+  EXPECT_EQ(occupied_inside(as_mover, first_above, 0.0), 0u);
+  EXPECT_GT(occupied_inside(as_mover, last_above, 0.05), 100u);
+  EXPECT_EQ(as_mover.state({last.min.x() + 0.01, 0.5 * (last.min.y() + last.max.y()), 0.5}),
+            VoxelState::kOccupied);
+  const OccupancyMap as_static = build(false);
+  EXPECT_GT(occupied_inside(as_static, first_above, 0.0), 100u);
+  // After it left, the static room behind it is mapped as usual.
+  EXPECT_EQ(as_mover.state({4.5, 2.1, 0.03}), VoxelState::kOccupied);
+}
+
 TEST(OccupancyMap, CorrectionRebuildsWithoutADoubledWall) {
   BoxWorld world;
   const PinholeCamera cam = test::make_camera();
@@ -236,6 +273,29 @@ TEST(OccupancyMap, RejectsImagesThatDoNotMatchTheCamera) {
     EXPECT_NE(std::string(e.what()).find("dynamic mask"), std::string::npos) << e.what();
   }
   EXPECT_EQ(map.stats().keyframes, 0u);
+  // Stored samples (from a saved session) are checked too.
+  kf.dynamic_mask.release();
+  KeyframeSamples samples = sample_keyframe(kf, map.options());
+  samples.depth_mm = cv::Mat::zeros(5, 5, CV_16UC1);
+  EXPECT_THROW(map.insert(samples), InputError);
+}
+
+TEST(OccupancyMap, StoredSamplesRebuildTheSameMap) {
+  // What a saved session keeps (keyframes()) inserted into a new map gives the same map.
+  BoxWorld world;
+  world.boxes.push_back({{4.0, 2.3, 0.012}, {4.45, 2.75, 0.9}, false, {30, 120, 30}});
+  OccupancyMap map;
+  insert_all(map, world, wall_path(3));
+  OccupancyMap loaded;
+  for (const auto& samples : map.keyframes()) loaded.insert(samples);
+  EXPECT_EQ(loaded.stats().occupied_voxels, map.stats().occupied_voxels);
+  EXPECT_EQ(loaded.stats().free_voxels, map.stats().free_voxels);
+  EXPECT_EQ(loaded.occupied_voxels().size(), map.occupied_voxels().size());
+  // A keyframe given again replaces the stored one (and rebuilds).
+  loaded.insert(map.keyframes().front());
+  EXPECT_EQ(loaded.stats().keyframes, 3u);
+  EXPECT_EQ(loaded.stats().rebuilds, 1u);
+  EXPECT_EQ(loaded.stats().occupied_voxels, map.stats().occupied_voxels);
 }
 
 }  // namespace

@@ -2,6 +2,7 @@
 // The occupancy map as files other tools open. Each throws InputError naming the file when it
 // cannot be written.
 
+#include <nlohmann/json.hpp>
 #include <string>
 
 #include "mcslam/mapping/occupancy_map.hpp"
@@ -34,5 +35,11 @@ void write_grid_png(const OccupancyGrid& grid, const std::string& path, int scal
 /// blue (uchar; the mean colour of the measurements that hit the voxel, grey when none had a
 /// colour).
 void write_occupied_voxels_ply(const OccupancyMap& map, const std::string& path);
+
+/// The map in figures, for summary.json's "occupancy": resolution, the grid (width, height,
+/// origin, T_world_grid and T_world_floor as 4x4 row lists, the floor and whether it was
+/// estimated, cells by state), voxels by state, keyframes, the time per keyframe (median, p95,
+/// max, ms), rebuilds and memory (bytes: octree, keyframes, colours, total, per keyframe).
+nlohmann::json occupancy_summary(const OccupancyStats& stats, const OccupancyGrid& grid);
 
 }  // namespace mcslam::mapping

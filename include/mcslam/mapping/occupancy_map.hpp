@@ -42,21 +42,35 @@ struct KeyframeDepth {
   /// CV_32FC1, metres, undistorted, camera.width x camera.height; 0 or NaN: no measurement.
   cv::Mat depth;
   /// CV_8UC1 of the same size, nonzero on the pixels of people and other movers; empty: none.
+  /// They are never obstacles: their rays only free the space in front of them.
   cv::Mat dynamic_mask;
+  /// CV_8UC1 of the same size, nonzero on the pixels of objects that move but are obstacles
+  /// where they are (a chair pushed across the floor: the object stage's constrained movers);
+  /// empty: none. Their voxels are occupied at once (at least just above the threshold) and
+  /// freed at once (at least just below it) when a later keyframe sees through them, instead of
+  /// after the 9 keyframes a static voxel at clamp_max needs. A dynamic pixel is dynamic even
+  /// when it is in this mask too.
+  cv::Mat mover_mask;
   /// CV_8UC3 (BGR) of the same size, for the voxels' colours; empty: none.
   cv::Mat colour;
 };
 
-/// A keyframe as the map keeps it: its depth sampled every `step` pixels. Sample (i, j) is
-/// pixel (i * step + (step - 1) / 2, j * step + (step - 1) / 2) of the full image.
+/// A keyframe as the map keeps it: its depth sampled in blocks of step x step pixels. Sample
+/// (i, j) is the block whose first pixel is (i * step, j * step), located at its centre
+/// (i * step + (step - 1) / 2.0, j * step + (step - 1) / 2.0): the median of the block's valid
+/// depths; dynamic when any pixel of the block is, else a mover's when any pixel is
+/// (OccupancyOptions::pixel_step).
 struct KeyframeSamples {
   KeyframeId id = 0;
   SE3 T_w_c;
   PinholeCamera camera;  ///< of the full image
   int step = 1;
   cv::Mat depth_mm;  ///< CV_16UC1, millimetres (1 mm is below the noise at any range); 0: none
-  cv::Mat dynamic;   ///< CV_8UC1, nonzero: a dynamic sample (grown mask)
-  cv::Mat colour;    ///< CV_8UC3 BGR, or empty
+  static constexpr std::uint8_t kStatic = 0;
+  static constexpr std::uint8_t kDynamic = 1;  ///< frees its ray only (grown mask)
+  static constexpr std::uint8_t kMover = 2;    ///< an obstacle that is forgotten when seen through
+  cv::Mat kind;                                ///< CV_8UC1: kStatic, kDynamic or kMover per sample
+  cv::Mat colour;                              ///< CV_8UC3 BGR, or empty
 
   /// The full-image pixel of sample (i, j).
   Eigen::Vector2d pixel(int i, int j) const {
@@ -150,7 +164,9 @@ class OccupancyMap {
   /// Samples the keyframe's depth, keeps the samples and integrates them: every measurement's
   /// ray frees the voxels it crosses up to free_margin_sigmas * sigma_z before the point; a
   /// static measurement within max_range marks the voxels within +-sigma_z of its point
-  /// occupied; a dynamic one marks nothing; one beyond max_range frees its ray up to max_range.
+  /// occupied; a dynamic one marks nothing; a mover's marks its voxels as a static one does,
+  /// but they become occupied at once and free at once when a later ray crosses them; one
+  /// beyond max_range frees its ray up to max_range.
   /// Within a keyframe a voxel hit by one measurement is not freed by another. A keyframe id
   /// given again replaces the stored one and rebuilds. Throws InputError on images that do not
   /// match the camera.

@@ -28,10 +28,16 @@ struct OccupancyOptions {
   /// 1437-1454), who measured the random error growing with z^2 to ~4 cm at 5 m. 1.4 mm at 1 m,
   /// 2.3 cm at 4 m. 0 disables the noise model (exact depth).
   double depth_noise_k = 1.425e-3;
-  /// A measurement's free ray stops free_margin_sigmas * sigma_z before the measured point, so
-  /// that the noise of one keyframe does not free (erode) the surface voxel another one hit.
-  /// The hit itself goes to every voxel within +-sigma_z of the point along its ray.
-  double free_margin_sigmas = 3.0;
+  /// The hit of a measurement goes to every voxel within +-sigma_z of its point along its ray,
+  /// and its free ray stops free_margin_sigmas * sigma_z before the point, so that a
+  /// measurement that overshoots the surface does not free (erode) the surface's voxel. On the
+  /// synthetic room with a person walking, 12 keyframes, depth noise sigma = 1.425e-3 z^2
+  /// (MapQuality tests): ghost rate 0.24 % and completeness 99.6 % at 1 sigma; 0.23 % and
+  /// 99.7 % at 0; 0.27 % at 2; 1.8 % at 3 (the margin keeps other keyframes' rays from clearing
+  /// the voxels in front of a surface that noisy hits marked). Without the +-sigma spread: 0.01 %
+  /// ghosts but 98.8 % complete (97.3 % with exact depth: surfaces seen at grazing angles are
+  /// eroded by the rays that pass over them).
+  double free_margin_sigmas = 1.0;
   /// Occupancy probabilities (OctoMap's and octomap_server's defaults): a hit adds
   /// logodds(prob_hit) = +0.85, a miss logodds(prob_miss) = -0.41, each once per keyframe and
   /// voxel; a voxel is occupied above prob_occupied. Its value is clamped to
@@ -43,12 +49,15 @@ struct OccupancyOptions {
   double prob_occupied = 0.5;
   double clamp_min = 0.12;
   double clamp_max = 0.97;
-  /// Keyframe depth is sampled every pixel_step-th pixel of every pixel_step-th row; these
-  /// samples are integrated and stored (for rebuilds). 0, auto: the sparsest step whose samples
-  /// are still at most half a voxel apart at max_range (effective_pixel_step()): at depth z a
-  /// step of s pixels spans s * z / fx metres, so s = max(1, floor(resolution * fx /
-  /// (2 * max_range))): 3 for a 525 px camera at 5 cm and 4 m (samples 2.3 cm apart at 4 m,
-  /// 5.7 mm at 1 m), 34,080 samples of a 640 x 480 image.
+  /// Keyframe depth is sampled in blocks of pixel_step x pixel_step pixels; a sample is the
+  /// median of its block's valid depths (one of them, so a block across an edge takes one side,
+  /// never a depth in between; and it cuts the noise: 21 % ghost voxels with the centre pixel
+  /// against 1.8 % with the median at 3 px and sigma = 1.425e-3 z^2), dynamic when any of its
+  /// pixels is. These samples are integrated and stored (for rebuilds). 0, auto: the sparsest step
+  /// whose samples are still at most half a voxel apart at max_range (effective_pixel_step()): at
+  /// depth z a step of s pixels spans s * z / fx metres, so s = max(1, floor(resolution * fx / (2 *
+  /// max_range))): 3 for a 525 px camera at 5 cm and 4 m (samples 2.3 cm apart at 4 m, 5.7 mm at 1
+  /// m), 34,080 samples of a 640 x 480 image.
   int pixel_step = 0;
   /// Dynamic-mask pixels are grown by this many pixels (full image) before sampling: the
   /// outline of a person mixes its depth with the background's and a mask is seldom exact
