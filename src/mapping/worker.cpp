@@ -49,7 +49,23 @@ void MappingWorker::enqueue_shared(KeyframeDepth keyframe) {
 void MappingWorker::correct(std::unordered_map<KeyframeId, SE3> T_w_c, bool listed_only) {
   if (!worker_ || failure_->failed()) return;  // finished or failed: dropped
   auto poses = std::make_shared<std::unordered_map<KeyframeId, SE3>>(std::move(T_w_c));
-  run([poses, listed_only](OccupancyMap& map) { map.correct(*poses, listed_only); });
+  ++pending_;
+  worker_->post([this, poses, listed_only] {
+    if (!failure_->failed()) {
+      try {
+        // Only this thread writes map_: it reads it without the lock, corrects a copy (a rebuild
+        // takes long), and takes the lock only to swap it in.
+        OccupancyMap corrected = map_.clone();
+        corrected.correct(*poses, listed_only);
+        const std::lock_guard<std::mutex> lock(map_mutex_);
+        map_ = std::move(corrected);
+        ++version_;
+      } catch (...) {
+        failure_->set(std::current_exception());
+      }
+    }
+    --pending_;
+  });
 }
 
 void MappingWorker::set_floor(std::optional<FloorPlane> floor) {

@@ -160,6 +160,9 @@ class OccupancyMap {
   ~OccupancyMap();
   OccupancyMap(OccupancyMap&&) noexcept;
   OccupancyMap& operator=(OccupancyMap&&) noexcept;
+  /// A copy of the map (the octree copied, the stored samples shared: they are never written),
+  /// for a rebuild off a lock while readers keep the original.
+  OccupancyMap clone() const;
 
   /// Samples the keyframe's depth, keeps the samples and integrates them: every measurement's
   /// ray frees the voxels it crosses up to free_margin_sigmas * sigma_z before the point; a

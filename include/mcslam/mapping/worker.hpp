@@ -54,7 +54,9 @@ class MappingWorker {
   /// write them afterwards (a frame's images are immutable once built).
   void enqueue_shared(KeyframeDepth keyframe);
   /// Queues new poses (T_w_c) of stored keyframes, applied after the keyframes queued before:
-  /// OccupancyMap::correct (the map rebuilds when one moved). A map::MapCorrection holds T_c_w:
+  /// OccupancyMap::correct (the map rebuilds when one moved). The rebuild runs on a copy of the
+  /// map, off the lock (a rebuild takes ~20-40 ms per stored keyframe): readers keep the map
+  /// before the correction until the rebuilt one replaces it. A map::MapCorrection holds T_c_w:
   /// pass the sparse map's keyframe poses after it applied the correction, inverted (all of
   /// them, or those that moved).
   void correct(std::unordered_map<KeyframeId, SE3> T_w_c, bool listed_only = false);
@@ -65,6 +67,8 @@ class MappingWorker {
   /// grid and the voxel list: milliseconds to tens of milliseconds, during which the mapping
   /// thread waits), otherwise the same shared snapshot.
   std::shared_ptr<const OccupancySnapshot> snapshot() const;
+  /// snapshot()->grid.
+  OccupancyGrid grid() const { return snapshot()->grid; }
   /// Runs fn on the map under its lock (any thread), e.g. to export it.
   void with_map(const std::function<void(const OccupancyMap&)>& fn) const;
   /// Keyframes and corrections queued and not integrated yet.
