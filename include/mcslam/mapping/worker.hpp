@@ -46,8 +46,8 @@ class MappingWorker {
   MappingWorker(const MappingWorker&) = delete;
   MappingWorker& operator=(const MappingWorker&) = delete;
 
-  /// Queues a keyframe; returns at once. Its images are copied (VGA depth, mask and colour: 2 MB,
-  /// 1-10 ms on a loaded 2-core machine), so the caller may reuse them. After a failure the
+  /// Queues a keyframe; returns at once. Its images are copied (VGA depth, masks and colour: 2.5
+  /// MB, 1-10 ms on a loaded 2-core machine), so the caller may reuse them. After a failure the
   /// keyframe is dropped.
   void enqueue(const KeyframeDepth& keyframe);
   /// Queues a keyframe without copying its images: they are shared, and the caller must not
@@ -85,6 +85,9 @@ class MappingWorker {
   std::string failure_message() const;
 
  private:
+  /// Queues body on the thread; its exception is kept in failure_, and after one nothing runs.
+  void post_guarded(std::function<void()> body);
+  /// A job on the map under its lock.
   void run(const std::function<void(OccupancyMap&)>& job);
 
   mutable std::mutex map_mutex_;  ///< guards map_, version_, floor_ and the cached snapshot
