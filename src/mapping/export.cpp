@@ -57,9 +57,18 @@ nlohmann::json matrix_rows(const Eigen::Matrix4d& T) {
 }  // namespace
 
 void write_octomap_binary(const OccupancyMap& map, const std::string& path) {
-  { std::ofstream probe = open_output(path); }
-  if (!map.octree().writeBinaryConst(path))
-    throw InputError(file_error(path, "cannot write the octree"));
+  // OcTree::writeBinaryConst's file format (its header, then the tree's data), written here
+  // because the library's own writer reports its progress on stderr.
+  const octomap::OcTree& tree = map.octree();
+  std::ofstream out = open_output(path);
+  out << "# Octomap OcTree binary file\n"
+      << "# (feel free to add / change comments, but leave the first line as it is!)\n#\n"
+      << "id " << tree.getTreeType() << "\n"
+      << "size " << tree.size() << "\n"
+      << "res " << tree.getResolution() << "\n"
+      << "data\n";
+  tree.writeBinaryData(out);
+  finish_output(out, path);
 }
 
 void write_map_server(const OccupancyGrid& grid, const std::string& pgm_path,

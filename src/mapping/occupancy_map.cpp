@@ -123,14 +123,20 @@ struct OccupancyMap::Impl {
   octomap::KeySet volatile_keys;  ///< voxels a mover marked last (across keyframes)
   octomap::KeyRay ray;
 
-  explicit Impl(const OccupancyOptions& o) : options(o), tree(o.resolution) {
-    tree.setProbHit(o.prob_hit);
-    tree.setProbMiss(o.prob_miss);
-    tree.setOccupancyThres(o.prob_occupied);
-    tree.setClampingThresMin(o.clamp_min);
-    tree.setClampingThresMax(o.clamp_max);
-    hit_log = octomap::logodds(o.prob_hit);
-    miss_log = octomap::logodds(o.prob_miss);
+  explicit Impl(const OccupancyOptions& o) : options(o), tree(o.resolution) { configure(); }
+  /// A deep copy: the octree's nodes are copied, the keyframes' sample images shared (they
+  /// are never written once stored).
+  Impl(const Impl& other) = default;
+  Impl& operator=(const Impl&) = delete;
+
+  void configure() {
+    tree.setProbHit(options.prob_hit);
+    tree.setProbMiss(options.prob_miss);
+    tree.setOccupancyThres(options.prob_occupied);
+    tree.setClampingThresMin(options.clamp_min);
+    tree.setClampingThresMax(options.clamp_max);
+    hit_log = octomap::logodds(options.prob_hit);
+    miss_log = octomap::logodds(options.prob_miss);
   }
 
   /// Frees the voxels from `from` to the voxel holding `to` (not included). Rays are cast to
@@ -259,6 +265,13 @@ OccupancyMap::OccupancyMap(const OccupancyOptions& options) {
 }
 
 OccupancyMap::~OccupancyMap() = default;
+
+OccupancyMap OccupancyMap::clone() const {
+  OccupancyMap copy(impl_->options);
+  copy.impl_ = std::make_unique<Impl>(*impl_);
+  copy.impl_->configure();
+  return copy;
+}
 OccupancyMap::OccupancyMap(OccupancyMap&&) noexcept = default;
 OccupancyMap& OccupancyMap::operator=(OccupancyMap&&) noexcept = default;
 

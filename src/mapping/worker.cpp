@@ -14,15 +14,13 @@ MappingWorker::MappingWorker(const OccupancyOptions& options, const std::string&
 
 MappingWorker::~MappingWorker() { worker_.reset(); }
 
-void MappingWorker::run(const std::function<void(OccupancyMap&)>& job) {
+void MappingWorker::post_guarded(std::function<void()> body) {
   ++pending_;
-  worker_->post([this, job] {
+  worker_->post([this, body = std::move(body)] {
     // The thread body: an exception is kept, never let out, and stops the work that follows.
     if (!failure_->failed()) {
       try {
-        const std::lock_guard<std::mutex> lock(map_mutex_);
-        job(map_);
-        ++version_;
+        body();
       } catch (...) {
         failure_->set(std::current_exception());
       }
@@ -31,11 +29,20 @@ void MappingWorker::run(const std::function<void(OccupancyMap&)>& job) {
   });
 }
 
+void MappingWorker::run(const std::function<void(OccupancyMap&)>& job) {
+  post_guarded([this, job] {
+    const std::lock_guard<std::mutex> lock(map_mutex_);
+    job(map_);
+    ++version_;
+  });
+}
+
 void MappingWorker::enqueue(const KeyframeDepth& keyframe) {
   if (!worker_ || failure_->failed()) return;  // finished or failed: dropped
   auto copy = std::make_shared<KeyframeDepth>(keyframe);
   copy->depth = keyframe.depth.clone();
   copy->dynamic_mask = keyframe.dynamic_mask.clone();
+  copy->mover_mask = keyframe.mover_mask.clone();
   copy->colour = keyframe.colour.clone();
   run([copy](OccupancyMap& map) { map.insert(*copy); });
 }
@@ -49,7 +56,15 @@ void MappingWorker::enqueue_shared(KeyframeDepth keyframe) {
 void MappingWorker::correct(std::unordered_map<KeyframeId, SE3> T_w_c, bool listed_only) {
   if (!worker_ || failure_->failed()) return;  // finished or failed: dropped
   auto poses = std::make_shared<std::unordered_map<KeyframeId, SE3>>(std::move(T_w_c));
-  run([poses, listed_only](OccupancyMap& map) { map.correct(*poses, listed_only); });
+  post_guarded([this, poses, listed_only] {
+    // Only this thread writes map_: it reads it without the lock, corrects a copy (a rebuild
+    // takes long), and takes the lock only to swap it in.
+    OccupancyMap corrected = map_.clone();
+    corrected.correct(*poses, listed_only);
+    const std::lock_guard<std::mutex> lock(map_mutex_);
+    map_ = std::move(corrected);
+    ++version_;
+  });
 }
 
 void MappingWorker::set_floor(std::optional<FloorPlane> floor) {

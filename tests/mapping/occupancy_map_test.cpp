@@ -1,6 +1,7 @@
 #include "mcslam/mapping/occupancy_map.hpp"
 
 #include <gtest/gtest.h>
+#include <octomap/OcTree.h>
 
 #include <cstdio>
 
@@ -278,6 +279,25 @@ TEST(OccupancyMap, RejectsImagesThatDoNotMatchTheCamera) {
   KeyframeSamples samples = sample_keyframe(kf, map.options());
   samples.depth_mm = cv::Mat::zeros(5, 5, CV_16UC1);
   EXPECT_THROW(map.insert(samples), InputError);
+}
+
+TEST(OccupancyMap, CloneIsIndependent) {
+  BoxWorld world;
+  OccupancyMap map;
+  insert_all(map, world, wall_path(2));
+  OccupancyMap copy = map.clone();
+  EXPECT_EQ(copy.stats().occupied_voxels, map.stats().occupied_voxels);
+  EXPECT_EQ(copy.occupied_voxels().size(), map.occupied_voxels().size());
+  const std::size_t before = map.stats().occupied_voxels;
+  SE3 moved = map.keyframes()[1].T_w_c;
+  moved.set_translation(moved.translation() + Eigen::Vector3d(0.3, 0.0, 0.0));
+  EXPECT_TRUE(copy.correct({{1, moved}}));
+  EXPECT_EQ(map.stats().occupied_voxels, before);
+  EXPECT_EQ(map.stats().rebuilds, 0u);
+  EXPECT_NE(copy.stats().occupied_voxels, before);
+  // The copy keeps the settings (hits and clamping) of the original.
+  EXPECT_DOUBLE_EQ(copy.octree().getProbHit(), map.octree().getProbHit());
+  EXPECT_DOUBLE_EQ(copy.octree().getClampingThresMax(), map.octree().getClampingThresMax());
 }
 
 TEST(OccupancyMap, StoredSamplesRebuildTheSameMap) {

@@ -83,6 +83,8 @@ TEST(MappingWorker, CorrectionsApplyInOrderAfterTheKeyframesBeforeThem) {
   reader.join();
   const auto s = worker.snapshot();
   EXPECT_EQ(s->stats.rebuilds, 1u);
+  EXPECT_EQ(s->version, 5u);
+  EXPECT_EQ(worker.grid().cells, s->grid.cells);
   worker.with_map([&](const OccupancyMap& map) {
     const MapQuality q = evaluate_map(map, world.static_surfaces());
     EXPECT_EQ(q.ghosts, 0u);

@@ -41,8 +41,9 @@ struct KeyframeDepth {
   PinholeCamera camera;
   /// CV_32FC1, metres, undistorted, camera.width x camera.height; 0 or NaN: no measurement.
   cv::Mat depth;
-  /// CV_8UC1 of the same size, nonzero on the pixels of people and other movers; empty: none.
-  /// They are never obstacles: their rays only free the space in front of them.
+  /// CV_8UC1 of the same size, nonzero on the pixels of people and of the other objects that
+  /// move by themselves (movers without a box); empty: none. They are never obstacles: their
+  /// rays only free the space in front of them.
   cv::Mat dynamic_mask;
   /// CV_8UC1 of the same size, nonzero on the pixels of objects that move but are obstacles
   /// where they are (a chair pushed across the floor: the object stage's constrained movers);
@@ -65,7 +66,7 @@ struct KeyframeSamples {
   SE3 T_w_c;
   PinholeCamera camera;  ///< of the full image
   int step = 1;
-  cv::Mat depth_mm;  ///< CV_16UC1, millimetres (1 mm is below the noise at any range); 0: none
+  cv::Mat depth_mm;  ///< CV_16UC1, millimetres (below the noise from 0.5 m on); 0: none
   static constexpr std::uint8_t kStatic = 0;
   static constexpr std::uint8_t kDynamic = 1;  ///< frees its ray only (grown mask)
   static constexpr std::uint8_t kMover = 2;    ///< an obstacle that is forgotten when seen through
@@ -160,6 +161,9 @@ class OccupancyMap {
   ~OccupancyMap();
   OccupancyMap(OccupancyMap&&) noexcept;
   OccupancyMap& operator=(OccupancyMap&&) noexcept;
+  /// A copy of the map (the octree copied, the stored samples shared: they are never written),
+  /// for a rebuild off a lock while readers keep the original.
+  OccupancyMap clone() const;
 
   /// Samples the keyframe's depth, keeps the samples and integrates them: every measurement's
   /// ray frees the voxels it crosses up to free_margin_sigmas * sigma_z before the point; a

@@ -16,27 +16,27 @@ struct OccupancyOptions {
   /// pruned into large nodes).
   double resolution = 0.05;
   /// Depth (z, metres) beyond which a measurement is not an obstacle: its ray frees space up to
-  /// this depth and marks nothing. Structured-light sensors (Kinect v1, Xtion) give depth to
-  /// ~8 m, but its noise grows with z^2 (below): 4 m is where it reaches ~2.3 cm, half a voxel.
+  /// this depth and marks nothing. Structured-light sensors (Kinect v1, Xtion) report depth well
+  /// beyond 4 m, but its noise grows with z^2 (below): at 4 m it reaches 2.3 cm, half a voxel.
   double max_range = 4.0;
   /// Depth noise of a structured-light sensor, sigma_z = depth_noise_k * z^2 (metres, z in
-  /// metres). Depth comes from disparity d = f * b / z, so a disparity error sigma_d gives
-  /// sigma_z = z^2 * sigma_d / (f * b). Kinect v1: IR camera f ~ 580 px, baseline b ~ 7.5 cm,
-  /// disparity measured in steps of 1/8 px with sigma_d ~ 0.06 px: k = 0.06 / (580 * 0.075)
-  /// = 1.4e-3 per metre. 1.425e-3 is the figure given for Khoshelham & Elberink (2012),
-  /// "Accuracy and resolution of Kinect depth data for indoor mapping applications" (Sensors 12,
-  /// 1437-1454), who measured the random error growing with z^2 to ~4 cm at 5 m. 1.4 mm at 1 m,
-  /// 2.3 cm at 4 m. 0 disables the noise model (exact depth).
+  /// metres). Depth comes from disparity, d = f * b / z, so a disparity error sigma_d gives
+  /// sigma_z = z^2 * sigma_d / (f * b): k = sigma_d / (f * b). 1.425e-3 per metre is the figure
+  /// given for the Kinect v1 by Khoshelham & Elberink (2012), "Accuracy and resolution of Kinect
+  /// depth data for indoor mapping applications" (Sensors 12, 1437-1454), whose random error
+  /// grows with z^2 to about 4 cm at 5 m; with the Kinect's IR camera (f ~ 580 px) and baseline
+  /// (b ~ 7.5 cm) it means sigma_d ~ 0.06 px, half of the 1/8-pixel step in which the sensor
+  /// measures disparity. 1.4 mm at 1 m, 1.3 cm at 3 m, 2.3 cm at 4 m. 0: exact depth.
   double depth_noise_k = 1.425e-3;
   /// The hit of a measurement goes to every voxel within +-sigma_z of its point along its ray,
   /// and its free ray stops free_margin_sigmas * sigma_z before the point, so that a
-  /// measurement that overshoots the surface does not free (erode) the surface's voxel. On the
-  /// synthetic room with a person walking, 12 keyframes, depth noise sigma = 1.425e-3 z^2
-  /// (MapQuality tests): ghost rate 0.24 % and completeness 99.6 % at 1 sigma; 0.23 % and
-  /// 99.7 % at 0; 0.27 % at 2; 1.8 % at 3 (the margin keeps other keyframes' rays from clearing
-  /// the voxels in front of a surface that noisy hits marked). Without the +-sigma spread: 0.01 %
-  /// ghosts but 98.8 % complete (97.3 % with exact depth: surfaces seen at grazing angles are
-  /// eroded by the rays that pass over them).
+  /// measurement that overshoots the surface does not free (erode) the surface's voxel.
+  /// Measured on the tests' analytic room (a person walking, 12 keyframes, depth noise
+  /// sigma = 1.425e-3 z^2; evaluation_test.cpp): ghost rate 0.24 % and completeness 99.6 % at 1
+  /// sigma; 0.23 % and 99.7 % at 0; 0.27 % at 2; 1.8 % at 3 (the margin keeps the other
+  /// keyframes' rays from clearing the voxels in front of a surface that noisy hits marked).
+  /// Without the +-sigma spread: 0.01 % ghosts but 98.8 % complete (97.3 % with exact depth:
+  /// surfaces seen at grazing angles are eroded by the rays that pass over them).
   double free_margin_sigmas = 1.0;
   /// Occupancy probabilities (OctoMap's and octomap_server's defaults): a hit adds
   /// logodds(prob_hit) = +0.85, a miss logodds(prob_miss) = -0.41, each once per keyframe and
@@ -49,15 +49,16 @@ struct OccupancyOptions {
   double prob_occupied = 0.5;
   double clamp_min = 0.12;
   double clamp_max = 0.97;
-  /// Keyframe depth is sampled in blocks of pixel_step x pixel_step pixels; a sample is the
-  /// median of its block's valid depths (one of them, so a block across an edge takes one side,
-  /// never a depth in between; and it cuts the noise: 21 % ghost voxels with the centre pixel
-  /// against 1.8 % with the median at 3 px and sigma = 1.425e-3 z^2), dynamic when any of its
-  /// pixels is. These samples are integrated and stored (for rebuilds). 0, auto: the sparsest step
-  /// whose samples are still at most half a voxel apart at max_range (effective_pixel_step()): at
-  /// depth z a step of s pixels spans s * z / fx metres, so s = max(1, floor(resolution * fx / (2 *
-  /// max_range))): 3 for a 525 px camera at 5 cm and 4 m (samples 2.3 cm apart at 4 m, 5.7 mm at 1
-  /// m), 34,080 samples of a 640 x 480 image.
+  /// Keyframe depth is sampled in blocks of pixel_step x pixel_step pixels. A sample is the
+  /// median of its block's valid depths: one of them, so that a block across an edge takes one
+  /// side and never a depth in between, and less noisy than one pixel (with the noise above at
+  /// 3 px and a 3 sigma margin: 21 % ghost voxels from the centre pixel, 1.8 % from the median).
+  /// A sample is dynamic when any pixel of its block is. The samples are integrated and stored
+  /// (for rebuilds). 0, auto: the sparsest step whose samples are still at most half a voxel
+  /// apart at max_range (effective_pixel_step()): at depth z a step of s pixels spans
+  /// s * z / fx metres, so s = max(1, floor(resolution * fx / (2 * max_range))): 3 for a
+  /// 525 px camera at 5 cm and 4 m (samples 2.3 cm apart at 4 m, 5.7 mm at 1 m), 213 x 160
+  /// samples of a 640 x 480 image.
   int pixel_step = 0;
   /// Dynamic-mask pixels are grown by this many pixels (full image) before sampling: the
   /// outline of a person mixes its depth with the background's and a mask is seldom exact

@@ -46,15 +46,17 @@ class MappingWorker {
   MappingWorker(const MappingWorker&) = delete;
   MappingWorker& operator=(const MappingWorker&) = delete;
 
-  /// Queues a keyframe; returns at once. Its images are copied (VGA depth, mask and colour: 2 MB,
-  /// 1-10 ms on a loaded 2-core machine), so the caller may reuse them. After a failure the
+  /// Queues a keyframe; returns at once. Its images are copied (VGA depth, masks and colour: 2.5
+  /// MB, 1-10 ms on a loaded 2-core machine), so the caller may reuse them. After a failure the
   /// keyframe is dropped.
   void enqueue(const KeyframeDepth& keyframe);
   /// Queues a keyframe without copying its images: they are shared, and the caller must not
   /// write them afterwards (a frame's images are immutable once built).
   void enqueue_shared(KeyframeDepth keyframe);
   /// Queues new poses (T_w_c) of stored keyframes, applied after the keyframes queued before:
-  /// OccupancyMap::correct (the map rebuilds when one moved). A map::MapCorrection holds T_c_w:
+  /// OccupancyMap::correct (the map rebuilds when one moved). The rebuild runs on a copy of the
+  /// map, off the lock (a rebuild takes ~20-40 ms per stored keyframe): readers keep the map
+  /// before the correction until the rebuilt one replaces it. A map::MapCorrection holds T_c_w:
   /// pass the sparse map's keyframe poses after it applied the correction, inverted (all of
   /// them, or those that moved).
   void correct(std::unordered_map<KeyframeId, SE3> T_w_c, bool listed_only = false);
@@ -65,6 +67,8 @@ class MappingWorker {
   /// grid and the voxel list: milliseconds to tens of milliseconds, during which the mapping
   /// thread waits), otherwise the same shared snapshot.
   std::shared_ptr<const OccupancySnapshot> snapshot() const;
+  /// snapshot()->grid.
+  OccupancyGrid grid() const { return snapshot()->grid; }
   /// Runs fn on the map under its lock (any thread), e.g. to export it.
   void with_map(const std::function<void(const OccupancyMap&)>& fn) const;
   /// Keyframes and corrections queued and not integrated yet.
@@ -81,6 +85,9 @@ class MappingWorker {
   std::string failure_message() const;
 
  private:
+  /// Queues body on the thread; its exception is kept in failure_, and after one nothing runs.
+  void post_guarded(std::function<void()> body);
+  /// A job on the map under its lock.
   void run(const std::function<void(OccupancyMap&)>& job);
 
   mutable std::mutex map_mutex_;  ///< guards map_, version_, floor_ and the cached snapshot
