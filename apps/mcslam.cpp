@@ -6,7 +6,9 @@
 #include <csignal>
 #include <cstdio>
 #include <filesystem>
+#include <iomanip>
 #include <iostream>
+#include <nlohmann/json.hpp>
 #include <optional>
 
 #include "mcslam/app/bench.hpp"
@@ -19,6 +21,7 @@
 #include "mcslam/eval/bonn.hpp"
 #include "mcslam/eval/metrics.hpp"
 #include "mcslam/io/trajectory_io.hpp"
+#include "mcslam/mapping/grid_change.hpp"
 #include "mcslam/slam/config.hpp"
 #include "mcslam/synth/sequence.hpp"
 #include "mcslam/version.hpp"
@@ -297,6 +300,33 @@ int detect_command(const mcslam::app::DetectRequest& request, bool quiet) {
 
 }  // namespace
 
+namespace {
+
+/// `mcslam grid-compare REF FULL`: docs/occupancy.md.
+int grid_compare_command(const std::string& ref_dir, const std::string& full_dir, bool json) {
+  const mcslam::mapping::OccupancyGrid ref = mcslam::mapping::read_run_grid(ref_dir);
+  const mcslam::mapping::OccupancyGrid full = mcslam::mapping::read_run_grid(full_dir);
+  const mcslam::mapping::GridChange c = mcslam::mapping::compare_grids(ref, full);
+  if (json) {
+    std::cout << nlohmann::json{{"full_occupied_seen_by_ref", c.full_occupied_seen},
+                                {"appeared", c.appeared},
+                                {"appeared_rate", c.appeared_rate},
+                                {"ref_occupied_seen_by_full", c.ref_occupied_seen},
+                                {"vanished", c.vanished}}
+                     .dump(2)
+              << "\n";
+    return 0;
+  }
+  std::cout << std::fixed << std::setprecision(2)
+            << "occupied in FULL where REF saw free: " << c.appeared << " of "
+            << c.full_occupied_seen << " cells REF saw (" << 100.0 * c.appeared_rate << " %)\n"
+            << "free in FULL where REF had occupied: " << c.vanished << " of "
+            << c.ref_occupied_seen << " cells FULL saw\n";
+  return 0;
+}
+
+}  // namespace
+
 int main(int argc, char** argv) {
   CLI::App cli{"mcslam: semantic RGB-D SLAM for dynamic indoor scenes"};
   cli.require_subcommand(1);
@@ -347,6 +377,9 @@ int main(int argc, char** argv) {
                     "Each frame waits for its own detection (default only with --sequential)");
   run_cmd->add_flag("--no-dynamics", run.no_dynamics,
                     "Keep the boxes but do not exclude dynamic objects (ablation)");
+  run_cmd->add_flag("--no-occupancy", run.no_occupancy,
+                    "No dense occupancy map (occupancy.bt, grid.pgm/.yaml/.png, "
+                    "occupancy_voxels.ply; mapping.enabled false)");
   run_cmd->add_flag("--no-constraints", run.no_constraints,
                     "Exclude dynamic objects but skip the moving-constraint check (ablation)");
   run_cmd->add_option("--vocabulary", run.vocabulary,
@@ -529,6 +562,16 @@ int main(int argc, char** argv) {
   eval_cmd->add_flag("--json", json, "Print JSON");
   eval_cmd->add_option("--max-dt", max_dt, "Association window in seconds")
       ->check(CLI::PositiveNumber);
+
+  std::string grid_ref, grid_full;
+  bool grid_json = false;
+  auto* grid_cmd = cli.add_subcommand(
+      "grid-compare",
+      "Cells occupied in one run's grid (FULL) where another's (REF) saw free: people left in "
+      "the map");
+  grid_cmd->add_option("REF", grid_ref, "Output folder of the reference run")->required();
+  grid_cmd->add_option("FULL", grid_full, "Output folder of the run to check")->required();
+  grid_cmd->add_flag("--json", grid_json, "Print JSON");
 
   std::string synth_output;
   mcslam::synth::SynthOptions synth_options;
@@ -727,6 +770,7 @@ int main(int argc, char** argv) {
       return 0;
     }
     if (eval_cmd->parsed()) return eval_command(gt_path, est_path, bonn, json, max_dt);
+    if (grid_cmd->parsed()) return grid_compare_command(grid_ref, grid_full, grid_json);
     if (synth_cmd->parsed()) {
       if (texture == "low") synth_options.texture = mcslam::synth::TextureLevel::kLow;
       if (path == "loop") synth_options.path = mcslam::synth::CameraPath::kLoop;

@@ -7,7 +7,7 @@ include(CMakePackageConfigHelpers)
 set(MCSLAM_INSTALL_CMAKEDIR ${CMAKE_INSTALL_LIBDIR}/cmake/mcslam)
 set(MCSLAM_INSTALL_DATADIR ${CMAKE_INSTALL_DATADIR}/mcslam)
 # In link order: each library before those it uses.
-set(MCSLAM_EXPORTED_MODULES api app slam synth eval perception optim map place features io core)
+set(MCSLAM_EXPORTED_MODULES api app slam synth eval perception optim map mapping place features io core)
 set(MCSLAM_EXPORTED_TARGETS mcslam_library)
 set(MCSLAM_PC_LIBS "")
 foreach(module ${MCSLAM_EXPORTED_MODULES})

@@ -32,6 +32,7 @@
 #include "mcslam/slam/config.hpp"
 #include "mcslam/slam/readout_calibration.hpp"
 #include "mcslam/slam/system.hpp"
+#include "occupancy_outputs.hpp"
 #include "run_observers.hpp"
 
 namespace mcslam::app {
@@ -632,6 +633,8 @@ nlohmann::json run_frames(const RunRequest& request, const std::string& source_p
                             map::map_to_json(system.map()).dump(1) + "\n");
     }
   }
+  if (system.occupancy() && failure.empty())
+    summary["occupancy"] = write_occupancy_outputs(*system.occupancy(), out);
   summary["features"] = {{"points", config.options.use.points},
                          {"lines", config.options.use.lines},
                          {"planes", config.options.use.planes}};
@@ -867,6 +870,7 @@ nlohmann::json run_sequence(const RunRequest& request) {
   if (config.options.opencv_threads > 0) cv::setNumThreads(config.options.opencv_threads);
   if (request.no_dynamics) config.options.tracker.dynamics.enabled = false;
   if (request.no_constraints) config.options.tracker.dynamics.constraints = false;
+  if (request.no_occupancy) config.options.occupancy_enabled = false;
   std::unique_ptr<map::Map> initial_map;
   if (request.load_session) initial_map = load_compatible_session(*request.load_session, config);
   std::unique_ptr<slam::DetectionSource> detection_source =

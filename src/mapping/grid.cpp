@@ -134,12 +134,24 @@ std::vector<PlaneCandidate> horizontal_planes(const std::vector<Eigen::Vector3d>
                                               const Eigen::Vector3d& up, double tolerance) {
   std::vector<PlaneCandidate> candidates;
   std::mt19937 rng(7);
-  std::uniform_int_distribution<std::size_t> pick(0, points.size() - 1);
+  // The floor is at the bottom: triplets are drawn from the lowest quarter of the voxels along
+  // "up" (inliers are counted over all). Drawn from all of them, a floor holding a tenth of the
+  // occupied voxels is hit by 300 triplets 0.3 times on average (Bonn crowd's first 240 frames:
+  // a desk top was taken for the floor in some runs).
+  std::vector<Eigen::Vector3d> low = points;
+  const std::size_t quarter = std::max<std::size_t>(3, low.size() / 4);
+  std::nth_element(
+      low.begin(), low.begin() + static_cast<std::ptrdiff_t>(quarter - 1), low.end(),
+      [&](const Eigen::Vector3d& a, const Eigen::Vector3d& b) { return up.dot(a) < up.dot(b); });
+  low.resize(std::min(low.size(), quarter));
+  std::uniform_int_distribution<std::size_t> pick_low(0, low.size() - 1);
+  const auto pick = [&](std::mt19937& g) { return pick_low(g); };
+  const std::vector<Eigen::Vector3d>& sample = low;
   const double min_cos = std::cos(30.0 * std::numbers::pi / 180.0);
   for (int iteration = 0; iteration < 300; ++iteration) {
-    const Eigen::Vector3d& a = points[pick(rng)];
-    const Eigen::Vector3d& b = points[pick(rng)];
-    const Eigen::Vector3d& c = points[pick(rng)];
+    const Eigen::Vector3d& a = sample[pick(rng)];
+    const Eigen::Vector3d& b = sample[pick(rng)];
+    const Eigen::Vector3d& c = sample[pick(rng)];
     Eigen::Vector3d n = (b - a).cross(c - a);
     if (n.norm() < 1e-9) continue;
     n.normalize();

@@ -2,14 +2,15 @@
 
 #include <utility>
 
-#include "mapping/thread_failure.hpp"
+#include "mcslam/core/thread_failure.hpp"
 #include "mcslam/core/worker.hpp"
+#include "mcslam/mapping/floor.hpp"
 
 namespace mcslam::mapping {
 
 MappingWorker::MappingWorker(const OccupancyOptions& options, const std::string& thread_name)
     : map_(options),
-      failure_(std::make_unique<detail::ThreadFailure>(thread_name)),
+      failure_(std::make_unique<ThreadFailure>("mapping (" + thread_name + ")")),
       worker_(std::make_unique<Worker>(thread_name)) {}
 
 MappingWorker::~MappingWorker() { worker_.reset(); }
@@ -73,12 +74,18 @@ void MappingWorker::set_floor(std::optional<FloorPlane> floor) {
   cached_.reset();
 }
 
+void MappingWorker::set_floor_candidates(std::vector<FloorPlane> candidates) {
+  const std::lock_guard<std::mutex> lock(map_mutex_);
+  floor_candidates_ = std::move(candidates);
+  cached_.reset();
+}
+
 std::shared_ptr<const OccupancySnapshot> MappingWorker::snapshot() const {
   const std::lock_guard<std::mutex> lock(map_mutex_);
   if (cached_ && cached_->version == version_) return cached_;
   auto s = std::make_shared<OccupancySnapshot>();
   s->version = version_;
-  s->grid = map_.grid(floor_);
+  s->grid = map_.grid(floor_ ? floor_ : choose_floor(map_, floor_candidates_));
   s->voxels = map_.occupied_voxels();
   s->stats = map_.stats();
   cached_ = std::move(s);

@@ -69,7 +69,15 @@ void LocalMapper::process(KeyFrameRequest request, StageTimes* times) {
     std::lock_guard<std::mutex> guard(times_mutex_);
     times_.push_back(std::move(local));
   }
+  if (occupancy_sink_ && !request.depth.empty())
+    if (const map::KeyFrame* kf = map_.keyframe(id)) occupancy_sink_(request, color, kf->T_w_c());
   if (listener_ && map_.keyframe(id) != nullptr) listener_(id);
+}
+
+void LocalMapper::set_occupancy_sink(OccupancySink sink) { occupancy_sink_ = std::move(sink); }
+
+void LocalMapper::set_correction_listener(std::function<void()> listener) {
+  correction_listener_ = std::move(listener);
 }
 
 void LocalMapper::set_undistorter(std::shared_ptr<const io::Undistorter> undistorter) {
@@ -605,6 +613,7 @@ void LocalMapper::global_bundle_adjustment() {
   options.robust_iterations = options_.global_ba_iterations;
   options.refine_iterations = options_.global_ba_iterations;
   bundle_adjust_keyframes(all, options, nullptr);
+  if (correction_listener_) correction_listener_();
 }
 
 void LocalMapper::bundle_adjust_keyframes(const std::vector<map::KeyFrameId>& local,
@@ -662,9 +671,12 @@ void LocalMapper::cull_keyframes(map::KeyFrameId id) {
 }
 
 void LocalMapper::correct(const map::MapCorrection& correction) {
-  auto lock = map_.write_lock();
-  map::apply_correction(map_, correction);
-  corrected_version_ = map_.version();
+  {
+    auto lock = map_.write_lock();
+    map::apply_correction(map_, correction);
+    corrected_version_ = map_.version();
+  }
+  if (correction_listener_) correction_listener_();
 }
 
 bool LocalMapper::close_loop(const LoopClosure& loop, const LoopOptions& options,
@@ -805,6 +817,7 @@ bool LocalMapper::close_loop(const LoopClosure& loop, const LoopOptions& options
   if (optim::optimize_pose_graph(graph, options.pose_graph).failed) {
     event.pose_graph_failed = true;
     event.correct_ms = watch.elapsed_ms();
+    if (correction_listener_) correction_listener_();  // the loop's own keyframes moved
     return true;  // the loop's keyframes were corrected and fused: the loop stands
   }
   map::MapCorrection correction;

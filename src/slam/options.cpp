@@ -100,6 +100,8 @@ std::optional<std::string> SystemOptions::check() const {
   if (auto e = place.check()) return e;
   if (auto e = readout.check()) return e;
   if (auto e = trajectory.check()) return e;
+  if (occupancy_enabled)
+    if (auto e = occupancy.check()) return e;
   return mapper.check();
 }
 

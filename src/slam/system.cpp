@@ -8,6 +8,7 @@
 #include "mcslam/map/session.hpp"
 #include "mcslam/slam/frame.hpp"
 #include "mcslam/slam/local_mapper.hpp"
+#include "mcslam/slam/occupancy.hpp"
 
 namespace mcslam::slam {
 
@@ -49,9 +50,39 @@ System::System(const PinholeCamera& camera, const SystemOptions& options,
       loop_closer_->start(options_.background_niceness);
     }
   }
+  if (options_.occupancy_enabled && !options_.localize) connect_occupancy();
   if (!options_.sequential) mapper_->start(options_.background_niceness);
   if (camera_.readout_auto)
     readout_ = std::make_unique<ReadoutEstimator>(camera_, options_.readout);
+}
+
+void System::connect_occupancy() {
+  occupancy_ = std::make_unique<mapping::MappingWorker>(options_.occupancy);
+  // The images the dense map gets are undistorted: their camera has no distortion.
+  PinholeCamera undistorted = camera_;
+  undistorted.distortion = {0.0, 0.0, 0.0, 0.0, 0.0};
+  const double depth_margin = options_.tracker.dynamics.object_depth_gap;
+  // On the mapper's thread (the map's writer: it reads the map without a lock).
+  mapper_->set_occupancy_sink([this, undistorted, depth_margin](const KeyFrameRequest& request,
+                                                                const cv::Mat& colour,
+                                                                const SE3& T_w_c) {
+    mapping::KeyframeDepth keyframe;
+    keyframe.id = request.id;
+    keyframe.T_w_c = T_w_c;
+    keyframe.camera = undistorted;
+    keyframe.depth = request.depth;
+    keyframe.dynamic_mask = region_mask(request.depth, request.dynamic_regions, depth_margin);
+    keyframe.mover_mask = region_mask(request.depth, request.mover_regions, depth_margin);
+    if (colour.type() == CV_8UC3 && colour.size() == request.depth.size()) keyframe.colour = colour;
+    occupancy_->set_floor_candidates(floor_candidates(*map_));
+    occupancy_->enqueue_shared(std::move(keyframe));
+  });
+  mapper_->set_correction_listener([this] {
+    std::unordered_map<mapping::KeyframeId, SE3> poses;
+    for (const auto& [id, kf] : map_->keyframes()) poses.emplace(id, kf.T_w_c());
+    occupancy_->set_floor_candidates(floor_candidates(*map_));
+    occupancy_->correct(std::move(poses));
+  });
 }
 
 ReadoutReport System::readout_report() const {
@@ -245,6 +276,12 @@ FrameResult System::process(const PreparedImages& images, double timestamp,
     // New points take their colour from the keyframe's image (for the saved map). The mapper
     // undistorts it on its thread; its own copy, as the caller may reuse its buffer.
     if (rgb.channels() == 3) outcome.keyframe->color = rgb.clone();
+    if (occupancy_) {
+      // Shared: the prepared depth is never written after it was made.
+      outcome.keyframe->depth = images.depth;
+      outcome.keyframe->dynamic_regions = object_regions(result.objects, ObjectState::kDynamic);
+      outcome.keyframe->mover_regions = object_regions(result.objects, ObjectState::kConstrained);
+    }
     if (sequential) {
       StageTimes mapper_times;
       try {
@@ -368,6 +405,7 @@ std::string System::background_failure() const {
   if (loop_closer_ && loop_closer_->failure().failed()) return loop_closer_->failure().message();
   if (detections_ && detections_->failure() && detections_->failure()->failed())
     return detections_->failure()->message();
+  if (occupancy_ && occupancy_->failed()) return occupancy_->failure_message();
   return "";
 }
 
@@ -397,7 +435,14 @@ void System::finish() {
   stop_threads();
   throw_if_background_failed();
   if (options_.mapper.global_ba_iterations > 0 && !options_.localize)
-    mapper_->global_bundle_adjustment();
+    mapper_->global_bundle_adjustment();  // the dense map is corrected after it
+  if (occupancy_) {
+    try {
+      occupancy_->wait();
+    } catch (const std::exception& e) {
+      throw BackgroundThreadError(e.what());
+    }
+  }
 }
 
 void System::add_record(const FrameRecord& record) {

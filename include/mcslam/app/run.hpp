@@ -76,6 +76,8 @@ struct RunRequest {
   /// Turn Algorithm 1 / Algorithm 2 off while keeping the boxes (for ablations).
   bool no_dynamics = false;
   bool no_constraints = false;
+  /// No dense occupancy map (mapping.enabled false): no occupancy.bt, grid.* files.
+  bool no_occupancy = false;
   /// The bag-of-words vocabulary (overrides place.vocabulary); loop closing off (loop.enabled).
   std::optional<std::string> vocabulary;
   bool no_loop_closing = false;

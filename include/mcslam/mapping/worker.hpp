@@ -17,13 +17,10 @@
 
 namespace mcslam {
 class Worker;
-}
+class ThreadFailure;
+}  // namespace mcslam
 
 namespace mcslam::mapping {
-
-namespace detail {
-class ThreadFailure;
-}
 
 /// What readers see of the map at one moment.
 struct OccupancySnapshot {
@@ -62,6 +59,9 @@ class MappingWorker {
   void correct(std::unordered_map<KeyframeId, SE3> T_w_c, bool listed_only = false);
   /// The floor the grid is computed over (from the sparse map's planes); nullopt: estimated.
   void set_floor(std::optional<FloorPlane> floor);
+  /// Planes that may be the floor (the sparse map's horizontal planes below the cameras): the
+  /// grid stands on the one that agrees with the voxels (choose_floor), without set_floor().
+  void set_floor_candidates(std::vector<FloorPlane> candidates);
 
   /// The map now (any thread). Built on demand when the map changed since the last one (the
   /// grid and the voxel list: milliseconds to tens of milliseconds, during which the mapping
@@ -94,8 +94,9 @@ class MappingWorker {
   OccupancyMap map_;
   std::uint64_t version_ = 0;
   std::optional<FloorPlane> floor_;
+  std::vector<FloorPlane> floor_candidates_;
   mutable std::shared_ptr<const OccupancySnapshot> cached_;
-  std::unique_ptr<detail::ThreadFailure> failure_;
+  std::unique_ptr<ThreadFailure> failure_;
   std::atomic<std::size_t> pending_{0};
   std::unique_ptr<Worker> worker_;  ///< last: stopped (its queue run) before the rest goes
 };

@@ -47,6 +47,15 @@ class LocalMapper {
   void set_undistorter(std::shared_ptr<const io::Undistorter> undistorter);
   /// Called on the mapper's thread after each keyframe is processed (loop detection).
   void set_keyframe_listener(std::function<void(map::KeyFrameId)> listener);
+  /// Called on the mapper's thread after each keyframe is processed, with the request (its
+  /// depth and dynamic regions), the colour image undistorted, and the keyframe's pose after
+  /// the local bundle adjustment: what the dense map integrates. Before the first keyframe.
+  using OccupancySink =
+      std::function<void(const KeyFrameRequest&, const cv::Mat& colour, const SE3& T_w_c)>;
+  void set_occupancy_sink(OccupancySink sink);
+  /// Called on the mapper's thread after a correction moved keyframes (a loop, a full bundle
+  /// adjustment merged, the final one): the dense map rebuilds what moved.
+  void set_correction_listener(std::function<void()> listener);
   /// Runs `task` on the mapper's thread between two keyframes and waits for it (inline when
   /// the mapper has no thread). Tasks may write the map: the mapper is then its writer. What the
   /// task throws is thrown here; so is the mapper's failure when its thread has failed (the
@@ -118,6 +127,8 @@ class LocalMapper {
   std::shared_ptr<const io::Undistorter> undistorter_;
   int direct_levels_up_ = 3;
   std::function<void(map::KeyFrameId)> listener_;
+  OccupancySink occupancy_sink_;
+  std::function<void()> correction_listener_;
   /// The map's version right after the last correction: keyframe requests made before it
   /// carry poses of the uncorrected map.
   std::uint64_t corrected_version_ = 0;

@@ -6,6 +6,7 @@
 #include "mcslam/features/lines.hpp"
 #include "mcslam/features/orb.hpp"
 #include "mcslam/features/planes.hpp"
+#include "mcslam/mapping/options.hpp"
 #include "mcslam/optim/bundle_adjustment.hpp"
 #include "mcslam/optim/pose_graph.hpp"
 #include "mcslam/optim/pose_optimizer.hpp"
@@ -213,6 +214,12 @@ struct SystemOptions {
   /// The final trajectory's positions smoothed with a motion prior (System::trajectory,
   /// trajectory.txt); the online poses are never smoothed.
   optim::TrajectorySmoothingOptions trajectory;
+  /// The dense occupancy map (mapping::MappingWorker on a thread of its own), fed with each
+  /// keyframe's depth and its people's and movers' pixels once the mapper has refined it, and
+  /// rebuilt where loop corrections and the final bundle adjustment move keyframes. The
+  /// `mapping.` settings; mapping.enabled false: no dense map (`mcslam run --no-occupancy`).
+  bool occupancy_enabled = true;
+  mapping::OccupancyOptions occupancy;
   /// With a map made earlier (System's initial map): track against it without changing it (no
   /// keyframes, no mapping, no loop closing). Set by `mcslam run --localize`.
   bool localize = false;

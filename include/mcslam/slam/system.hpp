@@ -31,6 +31,7 @@
 #include "mcslam/core/timing.hpp"
 #include "mcslam/core/trajectory.hpp"
 #include "mcslam/map/map.hpp"
+#include "mcslam/mapping/worker.hpp"
 #include "mcslam/slam/detection_source.hpp"
 #include "mcslam/slam/loop_closer.hpp"
 #include "mcslam/slam/options.hpp"
@@ -171,6 +172,9 @@ class System {
   /// BackgroundThreadError (after stopping the threads, without the final bundle adjustment)
   /// when a background thread has failed.
   void finish();
+  /// The dense occupancy map (null with options.occupancy_enabled off): snapshots of the grid
+  /// and the voxels from any thread; complete once finish() has returned.
+  const mapping::MappingWorker* occupancy() const { return occupancy_.get(); }
   /// The first failure of a background thread, "" while none has failed. Any thread.
   std::string background_failure() const;
   /// Testing the failure path (`mcslam run --inject-failure THREAD:N`): "mapper" throws while
@@ -226,6 +230,8 @@ class System {
   std::unique_ptr<FrameBuilder> builder_;
   std::unique_ptr<FrameBuilder> ahead_builder_;  // extract_features(), on the caller's thread
   std::unique_ptr<map::Map> map_;
+  /// The dense map: declared before the mapper, whose thread feeds it, so that it goes after.
+  std::unique_ptr<mapping::MappingWorker> occupancy_;
   std::unique_ptr<Tracker> tracker_;
   std::shared_ptr<const place::Vocabulary> vocabulary_;
   std::unique_ptr<LocalMapper> mapper_;
@@ -263,6 +269,8 @@ class System {
   std::vector<FrameRecord> records() const;
   /// Lets the mapper and the loop closer finish their queues and stops their threads.
   void stop_threads();
+  /// Feeds the dense map from the mapper's keyframes and corrections.
+  void connect_occupancy();
   /// Throws BackgroundThreadError when a background thread has failed.
   void throw_if_background_failed() const;
   std::vector<FrameMotion::MovingRegion> expected_moving_regions(double timestamp) const;

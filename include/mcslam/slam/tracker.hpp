@@ -20,6 +20,7 @@
 #include "mcslam/slam/dynamics.hpp"
 #include "mcslam/slam/frame.hpp"
 #include "mcslam/slam/objects.hpp"
+#include "mcslam/slam/occupancy.hpp"
 #include "mcslam/slam/options.hpp"
 
 namespace mcslam::slam {
@@ -47,6 +48,12 @@ struct KeyFrameRequest {
   /// The colour image (CV_8UC3) as the camera gave it, when the caller has one: it colours new
   /// points, once the mapper has undistorted it (LocalMapper::set_undistorter).
   cv::Mat color;
+  /// The frame's depth (CV_32FC1 metres, undistorted; shared, never written) and the image
+  /// regions of its people and other movers and of its constrained movers (a pushed chair), for
+  /// the dense map (System sets them; empty without one).
+  cv::Mat depth;
+  std::vector<DynamicRegion> dynamic_regions;
+  std::vector<DynamicRegion> mover_regions;
   /// Per point / line segment of frame: 1 on a dynamic or constrained moving object (no
   /// landmark may be created or fused there). Empty when the frame had no such object.
   std::vector<std::uint8_t> excluded_points;
