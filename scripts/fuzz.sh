@@ -6,6 +6,8 @@
 # build-fuzz/artifacts/. Exit 1 on a crash.
 # SECONDS 0 replays the seed corpora once (every input, including the ones that once crashed or
 # hung): the quick regression check CI runs.
+# A fuzzer also stops after MCSLAM_FUZZ_RUNS inputs (default 200000), whichever comes first, so
+# that its share of CI is bounded by work as well as by time (each prints how many it ran).
 # Usage: scripts/fuzz.sh [SECONDS] [NAME...]
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -27,7 +29,7 @@ for name in "${names[@]}"; do
     dirs=("fuzz/corpus/$name")
   else
     echo "fuzz: $name for $seconds s"
-    mode=(-max_total_time="$seconds")
+    mode=(-max_total_time="$seconds" -runs="${MCSLAM_FUZZ_RUNS:-200000}")
     dirs=("$work" "fuzz/corpus/$name")
   fi
   if ! ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
