@@ -164,6 +164,7 @@ class McapFile : public StorageFile {
              std::to_string(channel) + ", which no Channel record defines");
       const std::uint32_t topic = it->second;
       const auto ts = static_cast<std::int64_t>(log_time);
+      if (topic >= counts.size()) counts.resize(topics.size(), 0);  // a channel defined late
       ++counts[topic];
       ++total;
       first = std::min(first, ts);
@@ -238,7 +239,7 @@ class McapFile : public StorageFile {
       }
     }
     if (!footer) fail("truncated MCAP file: no footer record");
-    if (counting_ || counts.size() > topics.size()) topics.resize(counts.size());
+    counts.resize(topics.size(), 0);
     for (std::size_t t = 0; t < topics.size() && t < counts.size(); ++t)
       topics[t].count = counts[t];
     message_count = total;

@@ -62,6 +62,12 @@ std::int64_t integer(const io::detail::YamlNode* node, const std::string& path,
 
 std::atomic<int> g_temp_counter{0};
 
+/// Whether a message is a zstd frame (rosbag2's per-message compression; a CDR payload starts
+/// with 00). A storage file opened without its metadata.yaml does not say it is compressed.
+bool is_zstd(const std::uint8_t* data, std::size_t size) {
+  return size >= 4 && data[0] == 0x28 && data[1] == 0xB5 && data[2] == 0x2F && data[3] == 0xFD;
+}
+
 }  // namespace
 
 struct Recording::Impl {
@@ -276,7 +282,7 @@ void Recording::read(const std::vector<bool>& wanted, const Visitor& fn) const {
     for (std::size_t l = 0; l < map.size(); ++l)
       local[l] = map[l] < wanted.size() && wanted[map[l]];
     const std::string& file_path = impl_->file_paths[f];
-    const bool unzip = impl_->message_zstd;
+    const bool zstd_messages = impl_->message_zstd;
     impl_->files[f]->scan(
         local, [&](std::uint32_t topic, std::int64_t ts, std::int64_t key, std::uint64_t offset,
                    const std::uint8_t* data, std::size_t size) {
@@ -287,7 +293,7 @@ void Recording::read(const std::vector<bool>& wanted, const Visitor& fn) const {
           ref.key = key;
           ref.offset = offset;
           ref.size = size;
-          if (unzip) {
+          if (zstd_messages || is_zstd(data, size)) {
             std::vector<std::uint8_t> plain;
             try {
               plain = detail::zstd_decompress(data, size);
@@ -306,7 +312,7 @@ void Recording::read(const std::vector<bool>& wanted, const Visitor& fn) const {
 
 Payload Recording::fetch(const MessageRef& ref) const {
   Payload p = impl_->files.at(ref.file)->fetch(ref.key, ref.offset, ref.size);
-  if (!impl_->message_zstd) return p;
+  if (!impl_->message_zstd && !is_zstd(p.data, p.size)) return p;
   try {
     auto plain =
         std::make_shared<std::vector<std::uint8_t>>(detail::zstd_decompress(p.data, p.size));
