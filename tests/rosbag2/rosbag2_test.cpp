@@ -14,6 +14,7 @@
 #include "mcslam/rosbag2/recording.hpp"
 #include "mcslam/rosbag2/source.hpp"
 #include "rosbag2/messages.hpp"
+#include "rosbag2/storage.hpp"
 
 namespace fs = std::filesystem;
 using namespace mcslam;
@@ -446,4 +447,38 @@ TEST(RecordingSource, ExportThenReadIsTheSameFrames) {
       EXPECT_NE(error_of([&] { export_recording(*s, camera, out, eo); }).find("already exists"),
                 std::string::npos);
     }
+}
+
+TEST(Recording, FileCompressionAsRosbag2WritesIt) {
+  // rosbag2's --compression-mode file: each storage file zstd-compressed whole (NAME.db3.zstd),
+  // metadata.yaml listing the compressed names.
+  for (const std::string storage : {"sqlite3", "mcap"}) {
+    SCOPED_TRACE(storage);
+    WriterOptions o;
+    o.storage = storage;
+    const std::string dir = write_strings("file_zstd_" + storage, o);
+    const std::string file = storage_file(dir);
+    const auto plain = bytes_of(file);
+    const auto z =
+        detail::zstd_compress(reinterpret_cast<const std::uint8_t*>(plain.data()), plain.size(), 3);
+    write_bytes(file + ".zstd", std::vector<char>(z.begin(), z.end()));
+    fs::remove(file);
+    const std::string name = fs::path(file).filename().string();
+    std::ifstream in(fs::path(dir) / "metadata.yaml");
+    std::string yaml((std::istreambuf_iterator<char>(in)), {});
+    in.close();
+    for (const std::string& key : {"    - " + name, "    - path: " + name}) {
+      const auto at = yaml.find(key);
+      ASSERT_NE(at, std::string::npos);
+      yaml.insert(at + key.size(), ".zstd");
+    }
+    for (const auto& [from, to] : {std::pair<std::string, std::string>{"compression_format: \"\"",
+                                                                       "compression_format: zstd"},
+                                   {"compression_mode: \"\"", "compression_mode: FILE"}})
+      yaml.replace(yaml.find(from), from.size(), to);
+    std::ofstream(fs::path(dir) / "metadata.yaml") << yaml;
+    const auto r = Recording::open(dir);
+    EXPECT_EQ(r->compression_mode(), "FILE");
+    EXPECT_EQ(read_strings(dir).size(), 20u);
+  }
 }
