@@ -405,7 +405,9 @@ class McapFile : public StorageFile {
         fail("corrupt " + where + ": uncompressed, but " + std::to_string(records_size) +
              " bytes where its header says " + std::to_string(uncompressed_size));
     } else {
-      if (uncompressed_size > (std::uint64_t{1} << 34))
+      // No codec expands more than 65536 times (zstd's RLE blocks come nearest): a larger
+      // claim is a corrupt header, not a reason to allocate it.
+      if (uncompressed_size > records_size * 65536 + (1u << 20))
         fail("corrupt " + where + ": claims " + std::to_string(uncompressed_size) +
              " bytes uncompressed");
       buffer.resize(uncompressed_size);
@@ -749,7 +751,7 @@ std::vector<std::uint8_t> zstd_decompress(const std::uint8_t* data, std::size_t 
   const unsigned long long n = ZSTD_getFrameContentSize(data, size);
   if (n == ZSTD_CONTENTSIZE_ERROR) throw std::runtime_error("not a zstd frame");
   if (n != ZSTD_CONTENTSIZE_UNKNOWN) {
-    if (n > (1ull << 34))
+    if (n > size * 65536ull + (1u << 20))
       throw std::runtime_error("zstd frame claims " + std::to_string(n) + " bytes");
     std::vector<std::uint8_t> out(n);
     const std::size_t got = ZSTD_decompress(out.data(), out.size(), data, size);

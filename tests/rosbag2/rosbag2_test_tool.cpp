@@ -1,9 +1,12 @@
 // Makes bad ROS 2 recordings for tests/rosbag2/bad_recordings_test.sh:
 //   rosbag2_test_tool mutate IN OUT encoding|stamps-back|short   (colour message 3 changed)
 //   rosbag2_test_tool sqlite-other OUT.db3                       (a database that is no recording)
+//   rosbag2_test_tool seeds MCAP_DIR CDR_DIR                     (the fuzzers' seed corpora)
 #include <sqlite3.h>
 
 #include <cstring>
+#include <filesystem>
+#include <fstream>
 #include <iostream>
 
 #include "mcslam/core/error.hpp"
@@ -20,6 +23,56 @@ int main(int argc, char** argv) {
       if (sqlite3_open(argv[2], &db) != SQLITE_OK) return 2;
       sqlite3_exec(db, "CREATE TABLE songs(id INTEGER, title TEXT);", nullptr, nullptr, nullptr);
       sqlite3_close(db);
+      return 0;
+    }
+    if (command == "seeds" && argc == 4) {
+      namespace fs = std::filesystem;
+      int n = 0;
+      for (const std::string c : {"none", "lz4", "zstd"})
+        for (const bool chunked : {true, false})
+          for (const bool summary : {true, false}) {
+            if (!chunked && c != "none") continue;
+            WriterOptions o;
+            o.compression = c;
+            o.chunked = chunked;
+            o.summary = summary;
+            o.chunk_size = 64;
+            const fs::path tmp = fs::temp_directory_path() / ("mcslam_seed_" + std::to_string(n));
+            fs::remove_all(tmp);
+            {
+              RecordingWriter w(tmp.string(), o);
+              const auto t = w.add_topic("/chatter", "std_msgs/msg/String", "string data");
+              for (int i = 0; i < 3; ++i)
+                w.write(t, 1000 + i, detail::encode_string("hello " + std::to_string(i)));
+              w.close();
+            }
+            fs::copy_file(tmp / (tmp.filename().string() + "_0.mcap"),
+                          fs::path(argv[2]) / ("seed_" + std::to_string(n++) + ".mcap"),
+                          fs::copy_options::overwrite_existing);
+            fs::remove_all(tmp);
+          }
+      const auto put = [&](const std::string& name, const std::vector<std::uint8_t>& b) {
+        std::ofstream(fs::path(argv[3]) / name, std::ios::binary)
+            .write(reinterpret_cast<const char*>(b.data()), static_cast<long>(b.size()));
+      };
+      detail::Header h;
+      h.stamp = {12, 34};
+      h.frame_id = "camera";
+      mcslam::io::ImagePixels px;
+      px.encoding = "mono8";
+      px.width = 4;
+      px.height = 2;
+      px.step = 4;
+      px.data.assign(8, 7);
+      put("image", detail::encode_image(h, px));
+      put("compressed", detail::encode_compressed_image(h, "png", {0x89, 'P', 'N', 'G'}));
+      put("camera_info", detail::encode_camera_info(h, 4, 2, "plumb_bob", {0, 0, 0, 0, 0},
+                                                    {1, 0, 2, 0, 1, 1, 0, 0, 1}, {}, {}));
+      detail::Pose pose;
+      pose.header = h;
+      pose.child_frame_id = "kinect";
+      put("tf", detail::encode_tf({pose, pose}));
+      put("string", detail::encode_string("hello"));
       return 0;
     }
     if (command != "mutate" || argc != 5) {
