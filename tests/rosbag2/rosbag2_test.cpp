@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
 
 #include "mcslam/core/error.hpp"
 #include "mcslam/rosbag2/cdr.hpp"
@@ -430,6 +431,7 @@ TEST(RecordingSource, ExportThenReadIsTheSameFrames) {
       ExportOptions eo;
       eo.storage = storage;
       eo.rgb_encoding = rgb;
+      eo.depth_encoding = rgb == "png" ? "png" : "32FC1";  // millimetres exact here
       eo.compression = "zstd";
       const std::string out = fresh("export_" + storage + rgb);
       EXPECT_EQ(export_recording(*s, camera, out, eo), 5u);
@@ -481,4 +483,32 @@ TEST(Recording, FileCompressionAsRosbag2WritesIt) {
     EXPECT_EQ(r->compression_mode(), "FILE");
     EXPECT_EQ(read_strings(dir).size(), 20u);
   }
+}
+
+TEST(ImageMessage, CompressedColourAndDepth) {
+  cv::Mat bgr(30, 40, CV_8UC3, cv::Scalar(10, 120, 230));
+  std::vector<std::uint8_t> jpeg;
+  cv::imencode(".jpg", bgr, jpeg);
+  EXPECT_EQ(
+      io::check_compressed("rgb8; jpeg compressed bgr8", jpeg.data(), jpeg.size(), false, "x"),
+      cv::Size(40, 30));
+  const cv::Mat back = io::compressed_to_bgr("jpeg", jpeg.data(), jpeg.size(), "x");
+  EXPECT_LT(cv::norm(back, bgr, cv::NORM_INF), 8.0);
+  cv::Mat mm(30, 40, CV_16UC1, cv::Scalar(1234));
+  std::vector<std::uint8_t> png;
+  cv::imencode(".png", mm, png);
+  std::vector<std::uint8_t> depth(12 + png.size(), 0);  // ConfigHeader, then the PNG
+  std::memcpy(depth.data() + 12, png.data(), png.size());
+  const cv::Mat m =
+      io::compressed_depth_to_m("16UC1; compressedDepth png", depth.data(), depth.size(), "x");
+  EXPECT_FLOAT_EQ(m.at<float>(3, 4), 1.234f);
+  EXPECT_NE(error_of([&] {
+              io::check_compressed("32FC1; compressedDepth", depth.data(), depth.size(), true,
+                                   "here");
+            }).find("unknown compressed depth format"),
+            std::string::npos);
+  EXPECT_NE(error_of([&] {
+              io::check_compressed("tiff", jpeg.data(), jpeg.size(), false, "here");
+            }).find("unknown compressed colour format 'tiff'"),
+            std::string::npos);
 }
