@@ -34,6 +34,8 @@ enum Op : std::uint8_t {
   kMessageIndex = 0x07,
   kChunkIndex = 0x08,
   kStatistics = 0x0B,
+  kMetadata = 0x0C,
+  kMetadataIndex = 0x0D,
   kSummaryOffset = 0x0E,
   kDataEnd = 0x0F,
 };
@@ -563,9 +565,24 @@ class McapWriter : public StorageWriter {
     }
   }
 
-  void close(const std::string&) override {
+  void close(const std::string& metadata_yaml) override {
     flush_chunk();
     std::vector<std::uint8_t> out;
+    // As rosbag2's mcap plugin: the bag's metadata in a Metadata record named "rosbag2".
+    const std::uint64_t metadata_at = position_;
+    const std::size_t md = begin_record(out, kMetadata);
+    put_str(out, "rosbag2");
+    std::vector<std::uint8_t> map;
+    put_str(map, "ROS_DISTRO");
+    put_str(map, "");
+    put_str(map, "serialized_metadata");
+    put_str(map, metadata_yaml);
+    put_u32(out, static_cast<std::uint32_t>(map.size()));
+    out.insert(out.end(), map.begin(), map.end());
+    end_record(out, md);
+    const std::uint64_t metadata_length = out.size();
+    emit(out);
+    out.clear();
     const std::size_t de = begin_record(out, kDataEnd);
     put_u32(out, 0);  // data section CRC: not computed
     end_record(out, de);
@@ -590,8 +607,8 @@ class McapWriter : public StorageWriter {
       put_u64(summary, total_);
       put_u16(summary, static_cast<std::uint16_t>(channels_));
       put_u32(summary, channels_);
-      put_u32(summary, 0);
-      put_u32(summary, 0);
+      put_u32(summary, 0);  // attachments
+      put_u32(summary, 1);  // metadata
       put_u32(summary, static_cast<std::uint32_t>(chunk_indexes_.size()));
       put_u64(summary, total_ ? static_cast<std::uint64_t>(first_) : 0);
       put_u64(summary, total_ ? static_cast<std::uint64_t>(last_) : 0);
@@ -606,6 +623,13 @@ class McapWriter : public StorageWriter {
       summary.insert(summary.end(), chunk_indexes_.begin(), chunk_indexes_.end());
       if (!chunk_indexes_.empty())
         groups.push_back({kChunkIndex, position_ + ci_at, summary.size() - ci_at});
+      const std::size_t mi_at = summary.size();
+      const std::size_t mi = begin_record(summary, kMetadataIndex);
+      put_u64(summary, metadata_at);
+      put_u64(summary, metadata_length);
+      put_str(summary, "rosbag2");
+      end_record(summary, mi);
+      groups.push_back({kMetadataIndex, position_ + mi_at, summary.size() - mi_at});
       summary_offset_start = position_ + summary.size();
       for (const Group& g : groups) {
         const std::size_t so = begin_record(summary, kSummaryOffset);

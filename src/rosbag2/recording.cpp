@@ -361,6 +361,8 @@ struct RecordingWriter::Impl {
   std::int64_t last = std::numeric_limits<std::int64_t>::min();
   bool closed = false;
 
+  /// The metadata as rosbag2 serialises it (the sqlite3 metadata table holds this text; in
+  /// metadata.yaml it sits under rosbag2_bagfile_information).
   std::string metadata() const {
     std::uint64_t total = 0;
     for (const auto c : counts) total += c;
@@ -368,32 +370,39 @@ struct RecordingWriter::Impl {
     const std::int64_t duration = total ? last - first : 0;
     const bool sqlite_zstd = options.storage == "sqlite3" && options.compression == "zstd";
     std::ostringstream y;
-    y << "rosbag2_bagfile_information:\n"
-      << "  version: 8\n"
-      << "  storage_identifier: " << options.storage << "\n"
-      << "  duration:\n    nanoseconds: " << duration << "\n"
-      << "  starting_time:\n    nanoseconds_since_epoch: " << start << "\n"
-      << "  message_count: " << total << "\n"
-      << "  topics_with_message_count:\n";
+    y << "version: 8\n"
+      << "storage_identifier: " << options.storage << "\n"
+      << "duration:\n  nanoseconds: " << duration << "\n"
+      << "starting_time:\n  nanoseconds_since_epoch: " << start << "\n"
+      << "message_count: " << total << "\n"
+      << "topics_with_message_count:\n";
     for (std::size_t t = 0; t < topics.size(); ++t) {
-      y << "    - topic_metadata:\n"
-        << "        name: " << topics[t].name << "\n"
-        << "        type: " << topics[t].type << "\n"
-        << "        serialization_format: cdr\n"
-        << "        offered_qos_profiles: " << quoted(topics[t].qos) << "\n"
-        << "        type_description_hash: " << quoted(topics[t].hash) << "\n"
-        << "      message_count: " << counts[t] << "\n";
+      y << "  - topic_metadata:\n"
+        << "      name: " << topics[t].name << "\n"
+        << "      type: " << topics[t].type << "\n"
+        << "      serialization_format: cdr\n"
+        << "      offered_qos_profiles: " << quoted(topics[t].qos) << "\n"
+        << "      type_description_hash: " << quoted(topics[t].hash) << "\n"
+        << "    message_count: " << counts[t] << "\n";
     }
-    y << "  compression_format: " << quoted(sqlite_zstd ? "zstd" : "") << "\n"
-      << "  compression_mode: " << quoted(sqlite_zstd ? "MESSAGE" : "") << "\n"
-      << "  relative_file_paths:\n    - " << file_name << "\n"
-      << "  files:\n    - path: " << file_name << "\n"
-      << "      starting_time:\n        nanoseconds_since_epoch: " << start << "\n"
-      << "      duration:\n        nanoseconds: " << duration << "\n"
-      << "      message_count: " << total << "\n"
-      << "  custom_data: ~\n"
-      << "  ros_distro: \"\"\n";
+    y << "compression_format: " << quoted(sqlite_zstd ? "zstd" : "") << "\n"
+      << "compression_mode: " << quoted(sqlite_zstd ? "MESSAGE" : "") << "\n"
+      << "relative_file_paths:\n  - " << file_name << "\n"
+      << "files:\n  - path: " << file_name << "\n"
+      << "    starting_time:\n      nanoseconds_since_epoch: " << start << "\n"
+      << "    duration:\n      nanoseconds: " << duration << "\n"
+      << "    message_count: " << total << "\n"
+      << "custom_data: ~\n"
+      << "ros_distro: \"\"\n";
     return y.str();
+  }
+
+  /// metadata.yaml: the metadata under rosbag2_bagfile_information.
+  std::string metadata_file() const {
+    std::string out = "rosbag2_bagfile_information:\n";
+    std::istringstream in(metadata());
+    for (std::string line; std::getline(in, line);) out += "  " + line + "\n";
+    return out;
   }
 };
 
@@ -446,8 +455,8 @@ void RecordingWriter::write(std::uint32_t topic, std::int64_t timestamp_ns,
 void RecordingWriter::close() {
   if (impl_->closed) return;
   impl_->closed = true;
-  const std::string yaml = impl_->metadata();
-  impl_->storage->close(yaml);
+  impl_->storage->close(impl_->metadata());
+  const std::string yaml = impl_->metadata_file();
   impl_->storage.reset();
   const std::string meta = (fs::path(impl_->folder) / "metadata.yaml").string();
   std::ofstream out(meta, std::ios::binary);

@@ -220,7 +220,7 @@ class SqliteWriter : public StorageWriter {
     if (o.sqlite_schema_tables) {
       exec(db_,
            "CREATE TABLE schema(schema_version INTEGER PRIMARY KEY,ros_distro TEXT NOT NULL);"
-           "INSERT INTO schema (schema_version, ros_distro) VALUES (4, 'humble');"
+           "INSERT INTO schema (schema_version, ros_distro) VALUES (4, '');"
            "CREATE TABLE metadata(id INTEGER PRIMARY KEY,metadata_version INTEGER NOT NULL,"
            "metadata TEXT NOT NULL);"
            "CREATE TABLE topics(id INTEGER PRIMARY KEY,name TEXT NOT NULL,type TEXT NOT NULL,"
