@@ -15,6 +15,13 @@ fail() { echo "FAIL: $*"; exit 1; }
 before=$(cd "$WORK/out" && md5sum trajectory.txt summary.json status.json timings.csv)
 "$MCSLAM" bag-info "$WORK/good" | grep -q "Topic: /camera/rgb/image_color | Type: sensor_msgs/msg/Image | Count: 12" ||
   fail "bag-info does not list the colour topic"
+"$MCSLAM" bag-info "$WORK/good" --json | grep -q '"storage_identifier": "mcap"' || fail "bag-info --json"
+# bag-info reads ROS 1 bags too (when mcslam is built with ROS).
+if "$MCSLAM" export-bag "$WORK/seq" "$WORK/ros1.bag" -q 2> /dev/null; then
+  "$MCSLAM" bag-info "$WORK/ros1.bag" |
+    grep -q "Topic: /camera/rgb/image_color | Type: sensor_msgs/Image | Count: 12 | Serialization Format: ros1" ||
+    fail "bag-info on a ROS 1 bag"
+fi
 
 mcap=$WORK/good/good_0.mcap
 size=$(stat -c %s "$mcap")

@@ -321,16 +321,21 @@ TEST(Recording, SqliteThatIsNotARecording) {
 namespace {
 
 /// A small RGB-D recording: colour (rgb8), depth (16UC1), CameraInfo and TF ground truth.
-std::string write_rgbd(
-    const std::string& name, const std::string& storage,
-    const std::function<void(int, detail::Header&, io::ImagePixels&)>& edit = {}) {
+struct Names {
+  std::string rgb = "/camera/rgb/image_color", depth = "/camera/depth/image",
+              info = "/camera/rgb/camera_info";
+};
+
+std::string write_rgbd(const std::string& name, const std::string& storage,
+                       const std::function<void(int, detail::Header&, io::ImagePixels&)>& edit = {},
+                       const Names& names = {}) {
   const std::string dir = fresh(name);
   WriterOptions o;
   o.storage = storage;
   RecordingWriter w(dir, o);
-  const auto rgb = w.add_topic("/camera/rgb/image_color", "sensor_msgs/msg/Image");
-  const auto depth = w.add_topic("/camera/depth/image", "sensor_msgs/msg/Image");
-  const auto info = w.add_topic("/camera/rgb/camera_info", "sensor_msgs/msg/CameraInfo");
+  const auto rgb = w.add_topic(names.rgb, "sensor_msgs/msg/Image");
+  const auto depth = w.add_topic(names.depth, "sensor_msgs/msg/Image");
+  const auto info = w.add_topic(names.info, "sensor_msgs/msg/CameraInfo");
   const auto tf = w.add_topic("/tf", "tf2_msgs/msg/TFMessage");
   for (int i = 0; i < 5; ++i) {
     detail::Header h;
@@ -511,4 +516,24 @@ TEST(ImageMessage, CompressedColourAndDepth) {
               io::check_compressed("tiff", jpeg.data(), jpeg.size(), false, "here");
             }).find("unknown compressed colour format 'tiff'"),
             std::string::npos);
+}
+
+TEST(RecordingSource, RealsensePresetHasTheRos2DriversNames) {
+  SourceOptions o;
+  o.topics = TopicOptions::preset("realsense");
+  EXPECT_EQ(o.topics.rgb, "/camera/camera/color/image_raw");
+  const Names ros2 = {"/camera/camera/color/image_raw",
+                      "/camera/camera/aligned_depth_to_color/image_raw",
+                      "/camera/camera/color/camera_info"};
+  const auto a = RecordingSource::open(write_rgbd("rs_new", "mcap", {}, ros2), o);
+  EXPECT_EQ(a->frames().size(), 5u);
+  EXPECT_TRUE(a->camera_hints().intrinsics);
+  EXPECT_FALSE(a->groundtruth());  // the preset has no ground-truth topic
+  // The driver before 4.54 (no doubled /camera): found too.
+  const Names old = {"/camera/color/image_raw", "/camera/aligned_depth_to_color/image_raw",
+                     "/camera/color/camera_info"};
+  const auto b = RecordingSource::open(write_rgbd("rs_old", "sqlite3", {}, old), o);
+  EXPECT_EQ(b->frames().size(), 5u);
+  EXPECT_TRUE(b->camera_hints().intrinsics);
+  EXPECT_THROW(TopicOptions::preset("kinect"), InputError);
 }
