@@ -725,6 +725,10 @@ int main(int argc, char** argv) {
     if (export_cmd->parsed()) {
       if (export_rgb_encoding == "png" || export_depth_encoding == "png")
         throw mcslam::InputError("--rgb-encoding/--depth-encoding png: only with --format ros2");
+      if (export_cmd->count("--storage") || export_cmd->count("--compression"))
+        throw mcslam::InputError(
+            "--storage/--compression: only with --format ros2 (a ROS 1 bag "
+            "is always LZ4-compressed)");
 #ifdef MCSLAM_HAVE_ROS
       mcslam::ros::ExportOptions options;
       options.topics = topic_options(export_topics);

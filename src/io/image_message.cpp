@@ -36,8 +36,18 @@ cv::Mat view(const ImageMessage& msg, int type, const std::string& where) {
                      std::to_string(msg.step) + ")");
   if (msg.is_bigendian && CV_ELEM_SIZE1(type) > 1)
     throw InputError(where + ": big-endian " + msg.encoding + " images are not supported");
-  return cv::Mat(static_cast<int>(msg.height), static_cast<int>(msg.width), type,
-                 const_cast<std::uint8_t*>(msg.data), msg.step);
+  const cv::Mat in(static_cast<int>(msg.height), static_cast<int>(msg.width), type,
+                   const_cast<std::uint8_t*>(msg.data), msg.step);
+  // A serialised message's pixels need not be aligned for their type (in CDR the data follow
+  // the encoding string): misaligned 16- and 32-bit pixels are copied first.
+  if (reinterpret_cast<std::uintptr_t>(msg.data) % CV_ELEM_SIZE1(type) != 0 ||
+      msg.step % CV_ELEM_SIZE1(type) != 0) {
+    cv::Mat aligned(in.rows, in.cols, type);
+    for (int r = 0; r < in.rows; ++r)
+      std::memcpy(aligned.ptr(r), msg.data + static_cast<std::size_t>(r) * msg.step, row);
+    return aligned;
+  }
+  return in;
 }
 
 }  // namespace

@@ -55,19 +55,22 @@ class SqliteFile : public StorageFile {
   explicit SqliteFile(const std::string& path) : path_(path) {
     if (sqlite3_open_v2(path.c_str(), &db_, SQLITE_OPEN_READONLY, nullptr) != SQLITE_OK) {
       const std::string e = db_ ? sqlite3_errmsg(db_) : "out of memory";
-      sqlite3_close(db_);
+      sqlite3_close_v2(db_);
       db_ = nullptr;
       throw InputError(file_error(path, "cannot open the sqlite3 database: " + e));
     }
     try {
       list();
     } catch (...) {
-      sqlite3_close(db_);
+      sqlite3_close_v2(db_);
       db_ = nullptr;
       throw;
     }
   }
-  ~SqliteFile() override { sqlite3_close(db_); }
+  ~SqliteFile() override {
+    fetch_.reset();  // statements first: sqlite3_close fails while one is alive
+    sqlite3_close_v2(db_);
+  }
 
   void scan(const std::vector<bool>& wanted, const Visitor& fn) override {
     std::string ids;
@@ -212,7 +215,7 @@ class SqliteWriter : public StorageWriter {
     if (sqlite3_open_v2(path.c_str(), &db_, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE, nullptr) !=
         SQLITE_OK) {
       const std::string e = db_ ? sqlite3_errmsg(db_) : "out of memory";
-      sqlite3_close(db_);
+      sqlite3_close_v2(db_);
       db_ = nullptr;
       throw InputError(file_error(path, "cannot create the sqlite3 database: " + e));
     }
@@ -247,7 +250,7 @@ class SqliteWriter : public StorageWriter {
   }
   ~SqliteWriter() override {
     insert_.reset();
-    sqlite3_close(db_);
+    sqlite3_close_v2(db_);
   }
 
   void add_topic(std::uint32_t id, const WriterTopic& t) override {
@@ -300,7 +303,7 @@ class SqliteWriter : public StorageWriter {
     }
     exec(db_, "COMMIT;", path_);
     insert_.reset();
-    if (sqlite3_close(db_) != SQLITE_OK)
+    if (sqlite3_close_v2(db_) != SQLITE_OK)
       throw InputError(file_error(path_, "sqlite3: cannot close the database"));
     db_ = nullptr;
   }
