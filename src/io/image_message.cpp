@@ -1,5 +1,6 @@
 #include "mcslam/io/image_message.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <opencv2/imgcodecs.hpp>
@@ -23,8 +24,8 @@ Layout layout_of(const std::string& encoding) {
   return {};
 }
 
-/// The message's pixels as a Mat over its data (no copy).
-cv::Mat view(const ImageMessage& msg, int type, const std::string& where) {
+/// Checks the size and the data length.
+void validate(const ImageMessage& msg, int type, const std::string& where) {
   const std::size_t row = static_cast<std::size_t>(msg.width) * CV_ELEM_SIZE(type);
   if (msg.width == 0 || msg.height == 0)
     throw InputError(where + ": empty image (" + std::to_string(msg.width) + "x" +
@@ -34,18 +35,28 @@ cv::Mat view(const ImageMessage& msg, int type, const std::string& where) {
                      " bytes, too short for " + std::to_string(msg.width) + "x" +
                      std::to_string(msg.height) + " " + msg.encoding + " (step " +
                      std::to_string(msg.step) + ")");
-  if (msg.is_bigendian && CV_ELEM_SIZE1(type) > 1)
-    throw InputError(where + ": big-endian " + msg.encoding + " images are not supported");
+}
+
+/// The message's pixels as a Mat over its data (no copy unless swapped or misaligned).
+cv::Mat view(const ImageMessage& msg, int type, const std::string& where) {
+  validate(msg, type, where);
+  const std::size_t row = static_cast<std::size_t>(msg.width) * CV_ELEM_SIZE(type);
   const cv::Mat in(static_cast<int>(msg.height), static_cast<int>(msg.width), type,
                    const_cast<std::uint8_t*>(msg.data), msg.step);
-  // A serialised message's pixels need not be aligned for their type (in CDR the data follow
-  // the encoding string): misaligned 16- and 32-bit pixels are copied first.
-  if (reinterpret_cast<std::uintptr_t>(msg.data) % CV_ELEM_SIZE1(type) != 0 ||
-      msg.step % CV_ELEM_SIZE1(type) != 0) {
-    cv::Mat aligned(in.rows, in.cols, type);
-    for (int r = 0; r < in.rows; ++r)
-      std::memcpy(aligned.ptr(r), msg.data + static_cast<std::size_t>(r) * msg.step, row);
-    return aligned;
+  const int elem = CV_ELEM_SIZE1(type);
+  // Big-endian 16- and 32-bit pixels (is_bigendian; the host is little-endian) are swapped into
+  // a copy; so are misaligned ones: a serialised message's pixels need not be aligned for their
+  // type (in CDR the data follow the encoding string).
+  const bool swap = msg.is_bigendian && elem > 1;
+  if (swap || reinterpret_cast<std::uintptr_t>(msg.data) % elem != 0 || msg.step % elem != 0) {
+    cv::Mat copy(in.rows, in.cols, type);
+    for (int r = 0; r < in.rows; ++r) {
+      std::uint8_t* o = copy.ptr(r);
+      std::memcpy(o, msg.data + static_cast<std::size_t>(r) * msg.step, row);
+      if (swap)
+        for (std::size_t k = 0; k < row; k += elem) std::reverse(o + k, o + k + elem);
+    }
+    return copy;
   }
   return in;
 }
@@ -63,7 +74,7 @@ void check_image_message(const ImageMessage& msg, bool depth, const std::string&
                      (depth ? "use 16UC1 in millimetres or 32FC1 in metres"
                             : "use rgb8, bgr8, mono8, rgba8 or bgra8") +
                      ")");
-  view(msg, l.type, where);
+  validate(msg, l.type, where);
 }
 
 cv::Mat image_to_bgr(const ImageMessage& msg, const std::string& where) {

@@ -537,3 +537,22 @@ TEST(RecordingSource, RealsensePresetHasTheRos2DriversNames) {
   EXPECT_TRUE(b->camera_hints().intrinsics);
   EXPECT_THROW(TopicOptions::preset("kinect"), InputError);
 }
+
+TEST(ImageMessage, BigEndianAndMisalignedDepth) {
+  // 16UC1 with is_bigendian: 0x04D2 = 1234 mm; the data one byte off alignment.
+  std::vector<std::uint8_t> bytes = {0, 0x04, 0xD2, 0x00, 0x0A};
+  io::ImageMessage m;
+  m.width = 2;
+  m.height = 1;
+  m.step = 4;
+  m.encoding = "16UC1";
+  m.is_bigendian = true;
+  m.data = bytes.data() + 1;
+  m.size = 4;
+  cv::Mat d = io::image_to_depth_m(m, "x");
+  EXPECT_FLOAT_EQ(d.at<float>(0, 0), 1.234f);
+  EXPECT_FLOAT_EQ(d.at<float>(0, 1), 0.01f);
+  m.is_bigendian = false;
+  d = io::image_to_depth_m(m, "x");
+  EXPECT_FLOAT_EQ(d.at<float>(0, 0), 53764 / 1000.0f);  // 0xD204
+}
