@@ -111,13 +111,34 @@ cv::Mat millimetres_to_m(const cv::Mat& in) {
 cv::Mat image_to_depth_m(const ImageMessage& msg, const std::string& where) {
   check_image_message(msg, true, where);
   const bool mm = msg.encoding != "32FC1";
-  const cv::Mat in = view(msg, mm ? CV_16UC1 : CV_32FC1, where);
-  if (mm) return millimetres_to_m(in);
-  cv::Mat out(in.size(), CV_32FC1);
-  for (int r = 0; r < in.rows; ++r) {
+  // Straight from the message's bytes: its pixels may be misaligned (CDR) or big-endian, and
+  // reading them through memcpy needs no copy of the image first.
+  const bool swap = msg.is_bigendian;
+  cv::Mat out(static_cast<int>(msg.height), static_cast<int>(msg.width), CV_32FC1);
+  for (int r = 0; r < out.rows; ++r) {
+    const std::uint8_t* in = msg.data + static_cast<std::size_t>(r) * msg.step;
     float* o = out.ptr<float>(r);
-    const float* i = in.ptr<float>(r);
-    for (int c = 0; c < in.cols; ++c) o[c] = std::isfinite(i[c]) && i[c] > 0.0f ? i[c] : 0.0f;
+    if (mm) {
+      for (int c = 0; c < out.cols; ++c) {
+        std::uint16_t v;
+        std::memcpy(&v, in + 2 * c, 2);
+        if (swap) v = static_cast<std::uint16_t>((v >> 8) | (v << 8));
+        o[c] = static_cast<float>(v / 1000.0);
+      }
+    } else {
+      for (int c = 0; c < out.cols; ++c) {
+        float f;
+        if (swap) {
+          std::uint32_t u;
+          std::memcpy(&u, in + 4 * c, 4);
+          u = __builtin_bswap32(u);
+          std::memcpy(&f, &u, 4);
+        } else {
+          std::memcpy(&f, in + 4 * c, 4);
+        }
+        o[c] = std::isfinite(f) && f > 0.0f ? f : 0.0f;
+      }
+    }
   }
   return out;
 }
