@@ -22,6 +22,7 @@
 #include "mcslam/eval/metrics.hpp"
 #include "mcslam/io/trajectory_io.hpp"
 #include "mcslam/mapping/grid_change.hpp"
+#include "mcslam/rosbag2/source.hpp"
 #include "mcslam/slam/config.hpp"
 #include "mcslam/synth/sequence.hpp"
 #include "mcslam/version.hpp"
@@ -65,6 +66,19 @@ bool is_bag_path(const std::string& path) {
   throw mcslam::InputError(what +
                            ": mcslam was built without ROS support (install the ROS packages "
                            "with scripts/install-deps.sh and rebuild)");
+}
+
+/// The topic options for a ROS 2 recording (the realsense preset has the ROS 2 driver's names).
+mcslam::rosbag2::TopicOptions ros2_topic_options(const TopicArgs& a) {
+  mcslam::rosbag2::TopicOptions t = mcslam::rosbag2::TopicOptions::preset(a.preset);
+  if (a.rgb) t.rgb = *a.rgb;
+  if (a.depth) t.depth = *a.depth;
+  if (a.camera_info) t.camera_info = *a.camera_info;
+  if (a.groundtruth) t.groundtruth = *a.groundtruth;
+  if (a.world_frame) t.world_frame = *a.world_frame;
+  if (a.camera_frame) t.camera_frame = *a.camera_frame;
+  if (auto e = t.check()) throw mcslam::InputError("topics: " + *e);
+  return t;
 }
 
 #ifdef MCSLAM_HAVE_ROS
@@ -336,11 +350,12 @@ int main(int argc, char** argv) {
   mcslam::app::RunRequest run;
   bool quiet = false;
   bool sequential = false, threaded = false;
-  auto* run_cmd =
-      cli.add_subcommand("run", "Run SLAM on a TUM-layout RGB-D sequence or a ROS 1 bag");
+  auto* run_cmd = cli.add_subcommand(
+      "run", "Run SLAM on a TUM-layout RGB-D sequence, a ROS 1 bag or a ROS 2 recording");
   run_cmd
       ->add_option("sequence", run.sequence_dir,
-                   "Sequence folder (rgb.txt, depth.txt, ...) or ROS 1 bag file")
+                   "Sequence folder (rgb.txt, depth.txt, ...), ROS 1 bag file or ROS 2 recording "
+                   "(folder, .db3 or .mcap)")
       ->required();
   TopicArgs run_topics;
   add_topic_options(run_cmd, run_topics);
@@ -415,22 +430,46 @@ int main(int argc, char** argv) {
   std::string export_sequence, export_bag;
   std::optional<std::string> export_config, export_preset;
   std::string export_rgb_encoding = "bgr8", export_depth_encoding = "32FC1";
+  std::string export_format = "ros1", export_storage = "mcap", export_compression = "none";
   TopicArgs export_topics;
-  auto* export_cmd =
-      cli.add_subcommand("export-bag", "Write a TUM-layout sequence as a ROS 1 bag (needs ROS)");
+  auto* export_cmd = cli.add_subcommand(
+      "export-bag", "Write a TUM-layout sequence as a ROS 1 bag (needs ROS) or a ROS 2 recording");
   export_cmd->add_option("sequence", export_sequence, "Sequence folder")->required();
-  export_cmd->add_option("bag", export_bag, "Bag file to write")->required();
+  export_cmd->add_option("bag", export_bag, "Bag file (ros1) or recording folder (ros2) to write")
+      ->required();
+  export_cmd
+      ->add_option("--format", export_format, "ros1 (a .bag; default) or ros2 (a rosbag2 folder)")
+      ->check(CLI::IsMember({"ros1", "ros2"}));
+  export_cmd->add_option("--storage", export_storage, "ros2: mcap (default) or sqlite3")
+      ->check(CLI::IsMember({"mcap", "sqlite3"}));
+  export_cmd
+      ->add_option("--compression", export_compression,
+                   "ros2: none (default), zstd, or for mcap lz4 (MCAP chunks; sqlite3: rosbag2's "
+                   "per-message zstd)")
+      ->check(CLI::IsMember({"none", "lz4", "zstd"}));
   export_cmd->add_option("--config,-c", export_config, "Settings file for the camera");
   export_cmd->add_option("--camera-preset", export_preset,
                          "Camera preset instead of the one the folder name chooses");
-  export_cmd->add_option("--rgb-encoding", export_rgb_encoding, "bgr8 (default) or rgb8")
-      ->check(CLI::IsMember({"bgr8", "rgb8"}));
+  export_cmd
+      ->add_option("--rgb-encoding", export_rgb_encoding,
+                   "bgr8 (default) or rgb8; ros2 also png (CompressedImage on TOPIC/compressed)")
+      ->check(CLI::IsMember({"bgr8", "rgb8", "png"}));
   export_cmd
       ->add_option("--depth-encoding", export_depth_encoding,
-                   "32FC1 (metres, as the TUM bags; default) or 16UC1 (millimetres)")
-      ->check(CLI::IsMember({"32FC1", "16UC1"}));
+                   "32FC1 (metres, as the TUM bags; default) or 16UC1 (millimetres); ros2 also "
+                   "png (16UC1 compressedDepth on TOPIC/compressedDepth)")
+      ->check(CLI::IsMember({"32FC1", "16UC1", "png"}));
   add_topic_options(export_cmd, export_topics);
   export_cmd->add_flag("--quiet,-q", quiet, "No summary");
+
+  // bag-info: what a ROS 1 bag or a ROS 2 recording holds.
+  std::string info_path;
+  bool info_json = false;
+  auto* info_cmd = cli.add_subcommand(
+      "bag-info", "What a ROS 1 bag or ROS 2 recording holds: storage, duration, topics, counts");
+  info_cmd->add_option("path", info_path, "ROS 1 bag, ROS 2 recording folder, .db3 or .mcap")
+      ->required();
+  info_cmd->add_flag("--json", info_json, "As JSON (for scripts)");
 
   // ros: the live node.
   mcslam::app::RunRequest node_run;
@@ -679,7 +718,13 @@ int main(int argc, char** argv) {
       if (threaded) run.sequential = false;
       run.progress = !quiet && isatty(fileno(stderr));
       apply_viewer_args(run_viewer, run);
-      if (is_bag_path(run.sequence_dir)) {
+      if (mcslam::rosbag2::is_recording_path(run.sequence_dir)) {
+        if (run.associations_path)
+          throw mcslam::InputError("--associations: only for a sequence folder, not a recording");
+        mcslam::rosbag2::SourceOptions source_options;
+        source_options.topics = ros2_topic_options(run_topics);
+        run.source = mcslam::rosbag2::RecordingSource::open(run.sequence_dir, source_options);
+      } else if (is_bag_path(run.sequence_dir)) {
 #ifdef MCSLAM_HAVE_ROS
         if (run.associations_path)
           throw mcslam::InputError("--associations: only for a sequence folder, not a bag");
@@ -692,7 +737,46 @@ int main(int argc, char** argv) {
       }
       return run_command(run, quiet);
     }
+    if (info_cmd->parsed()) {
+      nlohmann::json info;
+      if (mcslam::rosbag2::is_recording_path(info_path)) {
+        info = mcslam::rosbag2::recording_info(info_path);
+      } else {
+#ifdef MCSLAM_HAVE_ROS
+        info = mcslam::ros::bag_info(info_path);
+#else
+        no_ros("bag-info " + info_path);
+#endif
+      }
+      std::cout << (info_json ? info.dump(2) + "\n" : mcslam::rosbag2::info_text(info));
+      return 0;
+    }
+    if (export_cmd->parsed() && export_format == "ros2") {
+      mcslam::rosbag2::ExportOptions options;
+      options.topics = ros2_topic_options(export_topics);
+      options.rgb_encoding = export_rgb_encoding;
+      options.depth_encoding = export_depth_encoding;
+      options.storage = export_storage;
+      options.compression = export_compression;
+      const auto source = mcslam::io::FolderSource::open(export_sequence);
+      for (const auto& warning : source->warnings())
+        std::cerr << "mcslam: warning: " << warning << "\n";
+      const mcslam::slam::RunConfig config = mcslam::slam::resolve_run_config(
+          export_sequence, export_config, mcslam::io::CameraHints{}, export_preset);
+      const std::size_t frames =
+          mcslam::rosbag2::export_recording(*source, config.camera, export_bag, options);
+      if (!quiet)
+        std::cout << "wrote " << frames << " frames to " << export_bag << " (" << export_storage
+                  << ", camera from " << config.camera_source << ")\n";
+      return 0;
+    }
     if (export_cmd->parsed()) {
+      if (export_rgb_encoding == "png" || export_depth_encoding == "png")
+        throw mcslam::InputError("--rgb-encoding/--depth-encoding png: only with --format ros2");
+      if (export_cmd->count("--storage") || export_cmd->count("--compression"))
+        throw mcslam::InputError(
+            "--storage/--compression: only with --format ros2 (a ROS 1 bag "
+            "is always LZ4-compressed)");
 #ifdef MCSLAM_HAVE_ROS
       mcslam::ros::ExportOptions options;
       options.topics = topic_options(export_topics);

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Fuzzes mcslam's parsers with libFuzzer (clang, AddressSanitizer + UBSan): the sequence lists,
-# the settings files, TUM trajectories, detections files, vocabulary files and map session files.
+# the settings files, TUM trajectories, detections files, vocabulary files, map session files,
+# MCAP files and CDR messages (ROS 2 recordings).
 # Each fuzzer starts from its seed corpus in fuzz/corpus/<name>/ (kept in the repository) and runs
 # for SECONDS (default 60); new inputs go to build-fuzz/corpus/<name>/, crashes to
 # build-fuzz/artifacts/. Exit 1 on a crash.
@@ -14,7 +15,7 @@ cd "$(dirname "$0")/.."
 seconds="${1:-60}"
 shift || true
 names=("$@")
-[ ${#names[@]} -gt 0 ] || names=(sequence_lists settings trajectory detections vocabulary session)
+[ ${#names[@]} -gt 0 ] || names=(sequence_lists settings trajectory detections vocabulary session mcap cdr)
 bash scripts/install-deps.sh > /dev/null
 cmake --preset fuzz > /dev/null
 cmake --build --preset fuzz -j "$(nproc)"

@@ -450,4 +450,56 @@ std::size_t export_bag(const io::FrameSource& source, const PinholeCamera& camer
   return written;
 }
 
+nlohmann::json bag_info(const std::string& path) {
+  if (!std::filesystem::is_regular_file(path)) throw InputError(file_error(path, "no such file"));
+  rosbag::Bag bag;
+  try {
+    bag.open(path, rosbag::bagmode::Read);
+  } catch (const std::exception& e) {
+    throw InputError(file_error(path, std::string("not a readable ROS 1 bag (truncated, or not a "
+                                                  "bag at all): ") +
+                                          e.what()));
+  }
+  std::map<std::string, std::pair<std::string, std::uint64_t>> topics;
+  std::uint64_t total = 0;
+  std::int64_t start = 0, end = 0;
+  try {
+    rosbag::View view(bag);
+    for (const rosbag::ConnectionInfo* c : view.getConnections())
+      topics[c->topic].first = c->datatype;
+    for (const rosbag::MessageInstance& m : view) {
+      ++topics[m.getTopic()].second;
+      ++total;
+    }
+    if (total > 0) {
+      start = static_cast<std::int64_t>(view.getBeginTime().toNSec());
+      end = static_cast<std::int64_t>(view.getEndTime().toNSec());
+    }
+  } catch (const std::exception& e) {
+    throw InputError(
+        file_error(path, std::string("cannot read the bag (truncated or corrupt?): ") + e.what()));
+  }
+  nlohmann::json j;
+  j["path"] = path;
+  j["storage_identifier"] = "rosbag (ROS 1)";
+  j["files"] = nlohmann::json::array(
+      {{{"path", std::filesystem::path(path).filename().string()}, {"message_count", total}}});
+  j["bag_size"] = std::filesystem::file_size(path);
+  j["start_ns"] = start;
+  j["end_ns"] = end;
+  j["duration_ns"] = end - start;
+  j["message_count"] = total;
+  j["compression_format"] = "";
+  j["compression_mode"] = "";
+  j["metadata_version"] = 0;
+  nlohmann::json list = nlohmann::json::array();
+  for (const auto& [name, t] : topics)
+    list.push_back({{"name", name},
+                    {"type", t.first},
+                    {"message_count", t.second},
+                    {"serialization_format", "ros1"}});
+  j["topics"] = list;
+  return j;
+}
+
 }  // namespace mcslam::ros

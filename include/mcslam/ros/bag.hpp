@@ -3,6 +3,7 @@
 // installed). The header names no ROS type: apps include it without ROS include paths.
 
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 #include <vector>
@@ -83,5 +84,9 @@ struct ExportOptions {
 /// bag. Returns the number of frames written. Throws InputError.
 std::size_t export_bag(const io::FrameSource& source, const PinholeCamera& camera,
                        const std::string& path, const ExportOptions& options = {});
+
+/// What a bag holds, with the keys of rosbag2::recording_info (storage, files, size, start, end,
+/// message count, per topic its type, count and "ros1" serialisation). Throws InputError.
+nlohmann::json bag_info(const std::string& path);
 
 }  // namespace mcslam::ros
