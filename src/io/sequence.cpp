@@ -14,6 +14,7 @@
 
 #include "io/text_util.hpp"
 #include "mcslam/core/error.hpp"
+#include "mcslam/io/association.hpp"
 
 namespace mcslam::io {
 namespace fs = std::filesystem;
@@ -113,45 +114,13 @@ std::vector<ListEntry> read_list(const std::string& directory, const std::string
   return existing;
 }
 
-// TUM associate.py: among all pairs with |t_rgb - t_depth| < max_difference, take pairs greedily
-// by increasing difference, each entry at most once; the result is sorted by RGB timestamp.
+// TUM associate.py's pairing (io/association.hpp), the result sorted by RGB timestamp.
 std::vector<FrameEntry> associate(const std::vector<ListEntry>& rgb,
                                   const std::vector<ListEntry>& depth, double max_difference) {
-  struct Candidate {
-    double difference;
-    std::size_t rgb_index;
-    std::size_t depth_index;
-  };
-  std::vector<Candidate> candidates;
-  // Both lists increase strictly, so each RGB entry's window of close depth entries starts at
-  // or after the previous RGB entry's window start.
-  std::size_t window_start = 0;
-  for (std::size_t i = 0; i < rgb.size(); ++i) {
-    const double t = rgb[i].timestamp;
-    while (window_start < depth.size() && t - depth[window_start].timestamp >= max_difference)
-      ++window_start;
-    for (std::size_t j = window_start; j < depth.size(); ++j) {
-      const double difference = std::abs(t - depth[j].timestamp);
-      if (depth[j].timestamp >= t && difference >= max_difference) break;
-      if (difference < max_difference) candidates.push_back({difference, i, j});
-    }
-  }
-  std::sort(candidates.begin(), candidates.end(), [](const Candidate& a, const Candidate& b) {
-    return std::tie(a.difference, a.rgb_index, a.depth_index) <
-           std::tie(b.difference, b.rgb_index, b.depth_index);
-  });
-
-  std::vector<bool> rgb_used(rgb.size(), false);
-  std::vector<bool> depth_used(depth.size(), false);
-  std::vector<std::pair<std::size_t, std::size_t>> matches;
-  for (const Candidate& c : candidates) {
-    if (rgb_used[c.rgb_index] || depth_used[c.depth_index]) continue;
-    rgb_used[c.rgb_index] = true;
-    depth_used[c.depth_index] = true;
-    matches.emplace_back(c.rgb_index, c.depth_index);
-  }
-  std::sort(matches.begin(), matches.end());
-
+  std::vector<double> rgb_stamps, depth_stamps;
+  for (const ListEntry& e : rgb) rgb_stamps.push_back(e.timestamp);
+  for (const ListEntry& e : depth) depth_stamps.push_back(e.timestamp);
+  const auto matches = associate_stamps(rgb_stamps, depth_stamps, max_difference);
   std::vector<FrameEntry> frames;
   frames.reserve(matches.size());
   for (const auto& [i, j] : matches)

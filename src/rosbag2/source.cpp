@@ -8,6 +8,7 @@
 #include <set>
 
 #include "mcslam/core/error.hpp"
+#include "mcslam/io/association.hpp"
 #include "mcslam/io/image_message.hpp"
 #include "mcslam/rosbag2/recording.hpp"
 #include "messages.hpp"
@@ -329,28 +330,9 @@ void RecordingSource::Impl::scan() {
 }
 
 void RecordingSource::Impl::associate() {
-  struct Candidate {
-    double dt;
-    std::size_t r, d;
-  };
-  std::vector<Candidate> candidates;
+  // As TUM's associate.py, as a TUM folder is read (io/association.hpp).
   const double limit = options.max_time_difference;
-  std::size_t first = 0;
-  for (std::size_t r = 0; r < rgb.stamps.size(); ++r) {
-    while (first < depth.stamps.size() && depth.stamps[first] <= rgb.stamps[r] - limit) ++first;
-    for (std::size_t d = first; d < depth.stamps.size() && depth.stamps[d] < rgb.stamps[r] + limit;
-         ++d)
-      candidates.push_back({std::abs(rgb.stamps[r] - depth.stamps[d]), r, d});
-  }
-  std::stable_sort(candidates.begin(), candidates.end(),
-                   [](const Candidate& a, const Candidate& b) { return a.dt < b.dt; });
-  std::vector<bool> rgb_used(rgb.stamps.size()), depth_used(depth.stamps.size());
-  for (const Candidate& c : candidates) {
-    if (rgb_used[c.r] || depth_used[c.d]) continue;
-    rgb_used[c.r] = depth_used[c.d] = true;
-    pairs.emplace_back(c.r, c.d);
-  }
-  std::sort(pairs.begin(), pairs.end());
+  pairs = io::associate_stamps(rgb.stamps, depth.stamps, limit);
   if (pairs.empty())
     throw InputError(file_error(
         path, "no colour image has a depth image within " + seconds(limit) + " s (colour " +
