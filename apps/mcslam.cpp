@@ -68,9 +68,12 @@ bool is_bag_path(const std::string& path) {
                            "with scripts/install-deps.sh and rebuild)");
 }
 
-/// The topic options for a ROS 2 recording (the realsense preset has the ROS 2 driver's names).
-mcslam::rosbag2::TopicOptions ros2_topic_options(const TopicArgs& a) {
-  mcslam::rosbag2::TopicOptions t = mcslam::rosbag2::TopicOptions::preset(a.preset);
+/// The topic options of a ROS 1 bag or a ROS 2 recording (mcslam::ros::TopicOptions or
+/// mcslam::rosbag2::TopicOptions: the same fields; each realsense preset has its driver's names),
+/// with the command line's overrides.
+template <typename Topics>
+Topics topic_options_from(const TopicArgs& a) {
+  Topics t = Topics::preset(a.preset);
   if (a.rgb) t.rgb = *a.rgb;
   if (a.depth) t.depth = *a.depth;
   if (a.camera_info) t.camera_info = *a.camera_info;
@@ -81,17 +84,13 @@ mcslam::rosbag2::TopicOptions ros2_topic_options(const TopicArgs& a) {
   return t;
 }
 
+mcslam::rosbag2::TopicOptions ros2_topic_options(const TopicArgs& a) {
+  return topic_options_from<mcslam::rosbag2::TopicOptions>(a);
+}
+
 #ifdef MCSLAM_HAVE_ROS
 mcslam::ros::TopicOptions topic_options(const TopicArgs& a) {
-  mcslam::ros::TopicOptions t = mcslam::ros::TopicOptions::preset(a.preset);
-  if (a.rgb) t.rgb = *a.rgb;
-  if (a.depth) t.depth = *a.depth;
-  if (a.camera_info) t.camera_info = *a.camera_info;
-  if (a.groundtruth) t.groundtruth = *a.groundtruth;
-  if (a.world_frame) t.world_frame = *a.world_frame;
-  if (a.camera_frame) t.camera_frame = *a.camera_frame;
-  if (auto e = t.check()) throw mcslam::InputError("topics: " + *e);
-  return t;
+  return topic_options_from<mcslam::ros::TopicOptions>(a);
 }
 #endif
 
