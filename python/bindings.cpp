@@ -286,6 +286,33 @@ PYBIND11_MODULE(_mcslam, m) {
              out["keyframes"] = trajectory_array(snap.keyframes);
              return out;
            })
+      .def("grid",
+           [](const LockedSystem& s) {
+             const mcslam::OccupancyGridSnapshot g = s.read(&Api::grid);
+             py::array_t<std::int8_t> cells(
+                 {static_cast<py::ssize_t>(g.height), static_cast<py::ssize_t>(g.width)});
+             if (!g.cells.empty())
+               std::memcpy(cells.mutable_data(), g.cells.data(), g.cells.size());
+             py::array_t<double> T({static_cast<py::ssize_t>(4), static_cast<py::ssize_t>(4)});
+             auto t = T.mutable_unchecked<2>();
+             for (int r = 0; r < 4; ++r)
+               for (int c = 0; c < 4; ++c) t(r, c) = g.T_world_grid(r, c);
+             py::dict out;
+             out["cells"] = cells;
+             out["resolution"] = g.resolution;
+             out["T_world_grid"] = T;
+             return out;
+           })
+      .def("occupied_voxels",
+           [](const LockedSystem& s) {
+             const std::vector<Eigen::Vector3d> v = s.read(&Api::occupied_voxels);
+             py::array_t<double> out(
+                 {static_cast<py::ssize_t>(v.size()), static_cast<py::ssize_t>(3)});
+             auto o = out.mutable_unchecked<2>();
+             for (std::size_t i = 0; i < v.size(); ++i)
+               for (int c = 0; c < 3; ++c) o(static_cast<py::ssize_t>(i), c) = v[i][c];
+             return out;
+           })
       .def(
           "save_session",
           [](LockedSystem& s, const std::string& path) {

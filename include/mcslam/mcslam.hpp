@@ -125,6 +125,16 @@ struct MapSnapshot {
   Trajectory keyframes;
 };
 
+/// The 2D occupancy grid of the floor (nav_msgs/OccupancyGrid's convention): cells row-major,
+/// row 0 the lowest y, -1 unknown, 0 free, 100 occupied; a cell's lower-left corner is at
+/// (col, row) * resolution in the grid frame, p_world = T_world_grid * p_grid.
+struct OccupancyGridSnapshot {
+  int width = 0, height = 0;
+  double resolution = 0.05;
+  Eigen::Matrix4d T_world_grid = Eigen::Matrix4d::Identity();
+  std::vector<std::int8_t> cells;
+};
+
 /// The SLAM system: feed RGB-D frames, read poses and the map.
 class System {
  public:
@@ -154,6 +164,10 @@ class System {
   /// Tracked frames at the poses tracking gave them at the time.
   Trajectory online_trajectory() const;
   MapSnapshot map() const;
+  /// The dense map (docs/mapping.md): the floor grid and the occupied voxels' centres (world
+  /// frame), as integrated so far (complete after finish()); empty with mapping.enabled off.
+  OccupancyGridSnapshot grid() const;
+  std::vector<Eigen::Vector3d> occupied_voxels() const;
   /// The map as a session file (`mcslam run --load-session` reads it); after finish().
   void save_session(const std::string& path) const;
   const Settings& settings() const { return settings_; }

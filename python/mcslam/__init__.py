@@ -123,7 +123,9 @@ class System(_System):
     finish(); trajectory(), unsmoothed_trajectory(), keyframe_trajectory(),
     online_trajectory() -> N x 8 arrays;
     map() -> {"points": N x 3, "lines": N x 6 (two endpoints), "planes": N x 4 (n, d),
-    "keyframes": N x 8}; save_session(path).
+    "keyframes": N x 8}; grid() -> {"cells": H x W int8 (nav_msgs: -1 unknown, 0 free,
+    100 occupied; row 0 the lowest y), "resolution": metres, "T_world_grid": 4 x 4};
+    occupied_voxels() -> N x 3 (world frame); save_session(path).
     """
 
     def __init__(self, camera, settings=None, **options):

@@ -236,3 +236,20 @@ def test_two_threads_on_one_system_are_serialised(synth_sequence):
     system.finish()
     assert not errors
     assert sorted(ids) == list(range(24))
+
+
+def test_occupancy_grid_and_voxels(python_run):
+    # The dense map of the synthetic room: a floor grid with free and occupied cells, and the
+    # occupied voxels in the world frame, within the room (walls 3-4 m from the start).
+    _, system, _ = python_run
+    g = system.grid()
+    cells = g["cells"]
+    assert cells.dtype == np.int8 and cells.ndim == 2 and cells.size > 0
+    assert (cells == 100).sum() > 0 and (cells == 0).sum() > 0
+    assert set(np.unique(cells)) <= {-1, 0, 100}
+    assert abs(g["resolution"] - 0.05) < 1e-12
+    T = g["T_world_grid"]
+    assert T.shape == (4, 4) and np.allclose(T[:3, :3] @ T[:3, :3].T, np.eye(3), atol=1e-9)
+    v = system.occupied_voxels()
+    assert v.ndim == 2 and v.shape[1] == 3 and len(v) > 100
+    assert np.abs(v).max() < 10.0

@@ -239,6 +239,27 @@ Trajectory System::unsmoothed_trajectory() const { return system_->unsmoothed_tr
 Trajectory System::keyframe_trajectory() const { return system_->keyframe_trajectory(); }
 Trajectory System::online_trajectory() const { return system_->online_trajectory(); }
 
+OccupancyGridSnapshot System::grid() const {
+  OccupancyGridSnapshot out;
+  const mapping::MappingWorker* occupancy = system_->occupancy();
+  if (!occupancy) return out;
+  const auto snapshot = occupancy->snapshot();
+  out.width = snapshot->grid.width;
+  out.height = snapshot->grid.height;
+  out.resolution = snapshot->grid.resolution;
+  out.T_world_grid = snapshot->grid.T_world_grid;
+  out.cells = snapshot->grid.cells;
+  return out;
+}
+
+std::vector<Eigen::Vector3d> System::occupied_voxels() const {
+  std::vector<Eigen::Vector3d> out;
+  const mapping::MappingWorker* occupancy = system_->occupancy();
+  if (!occupancy) return out;
+  for (const mapping::OccupiedVoxel& v : occupancy->snapshot()->voxels) out.push_back(v.centre);
+  return out;
+}
+
 MapSnapshot System::map() const {
   MapSnapshot out;
   const map::Map& m = system_->map();

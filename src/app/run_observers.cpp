@@ -170,6 +170,12 @@ nlohmann::json objects_json(const slam::FrameResult& r) {
                         {"propagated_matches", o.propagated_matches},
                         {"background_points", o.background_points}};
     if (o.depth_far > 0.0f) j["depth_band_m"] = {o.depth_near, o.depth_far};
+    if (o.world_box) {
+      const Eigen::Vector3d& lo = o.world_box->first;
+      const Eigen::Vector3d& hi = o.world_box->second;
+      j["world_box_m"] = {{"min", {lo.x(), lo.y(), lo.z()}}, {"max", {hi.x(), hi.y(), hi.z()}}};
+    }
+    if (o.velocity) j["velocity_mps"] = {o.velocity->x(), o.velocity->y(), o.velocity->z()};
     if (o.constraint.plane >= 0 || o.constraint.points > 0)
       j["constraint"] = {{"constrained", o.constraint.constrained},
                          {"plane", o.constraint.plane},

@@ -1,6 +1,7 @@
 #include "mcslam/slam/occupancy.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 #include "mcslam/slam/objects.hpp"
@@ -43,6 +44,45 @@ cv::Mat region_mask(const cv::Mat& depth, const std::vector<DynamicRegion>& regi
     }
   }
   return mask;
+}
+
+std::optional<std::pair<Eigen::Vector3d, Eigen::Vector3d>> world_box(
+    const PinholeCamera& camera, const cv::Mat& depth, const DynamicRegion& region,
+    const SE3& T_w_c, double depth_margin, int step) {
+  if (depth.empty() || depth.type() != CV_32FC1) return std::nullopt;
+  const cv::Rect box = cv::Rect(static_cast<int>(std::floor(region.box.x)),
+                                static_cast<int>(std::floor(region.box.y)),
+                                static_cast<int>(std::ceil(region.box.width)),
+                                static_cast<int>(std::ceil(region.box.height))) &
+                       cv::Rect(0, 0, depth.cols, depth.rows);
+  const bool banded = region.depth_far > 0.0f;
+  const double near = banded ? region.depth_near - depth_margin : 0.0;
+  const double far = banded ? region.depth_far + depth_margin : 1e9;
+  std::array<std::vector<double>, 3> axes;
+  for (int y = box.y; y < box.y + box.height; y += step) {
+    const float* row = depth.ptr<float>(y);
+    for (int x = box.x; x < box.x + box.width; x += step) {
+      const double z = row[x];
+      if (!(z > 0.0) || z < near || z > far) continue;
+      const Eigen::Vector3d p_c((x - camera.cx) * z / camera.fx, (y - camera.cy) * z / camera.fy,
+                                z);
+      const Eigen::Vector3d p_w = T_w_c * p_c;
+      for (int a = 0; a < 3; ++a) axes[a].push_back(p_w[a]);
+    }
+  }
+  if (axes[0].size() < 10) return std::nullopt;
+  Eigen::Vector3d lo, hi;
+  for (int a = 0; a < 3; ++a) {
+    std::vector<double>& v = axes[a];
+    const auto at = [&v](double q) {
+      const auto k = static_cast<std::ptrdiff_t>(q * static_cast<double>(v.size() - 1));
+      std::nth_element(v.begin(), v.begin() + k, v.end());
+      return v[static_cast<std::size_t>(k)];
+    };
+    lo[a] = at(0.05);
+    hi[a] = at(0.95);
+  }
+  return std::make_pair(lo, hi);
 }
 
 std::vector<mapping::FloorPlane> floor_candidates(const map::Map& map, double max_tilt_deg,

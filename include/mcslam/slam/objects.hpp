@@ -60,6 +60,12 @@ struct ObjectReport {
   float depth_near = -1.0f;
   float depth_far = -1.0f;
   int background_points = 0;  ///< features inside the box kept as static background
+  /// Moving objects (dynamic and constrained) in a tracked frame: where the object is in the
+  /// world frame (an axis-aligned box over its depth pixels, 5th to 95th percentile on each
+  /// axis) and its velocity (m/s: the slope of its box centre over its track's last half second,
+  /// once that holds 3 frames over 0.1 s). Set by System.
+  std::optional<std::pair<Eigen::Vector3d, Eigen::Vector3d>> world_box;  ///< min, max corner
+  std::optional<Eigen::Vector3d> velocity;
 };
 
 const char* to_string(ObjectReport::Source source);

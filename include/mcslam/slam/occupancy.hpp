@@ -7,6 +7,7 @@
 #include <optional>
 #include <vector>
 
+#include "mcslam/core/camera.hpp"
 #include "mcslam/core/se3.hpp"
 #include "mcslam/map/map.hpp"
 #include "mcslam/mapping/occupancy_map.hpp"
@@ -35,6 +36,14 @@ std::vector<DynamicRegion> object_regions(const std::vector<ObjectReport>& objec
 /// widened by `depth_margin` metres (or has no depth), 0 elsewhere; empty without regions.
 cv::Mat region_mask(const cv::Mat& depth, const std::vector<DynamicRegion>& regions,
                     double depth_margin);
+
+/// Where a region's object is in the world: the depth pixels of its box within its band (every
+/// `step`-th pixel of every `step`-th row), back-projected with `camera` (undistorted) and moved
+/// by T_w_c; the 5th to 95th percentile on each world axis (min, max). nullopt with fewer than
+/// 10 such pixels.
+std::optional<std::pair<Eigen::Vector3d, Eigen::Vector3d>> world_box(
+    const PinholeCamera& camera, const cv::Mat& depth, const DynamicRegion& region,
+    const SE3& T_w_c, double depth_margin, int step = 4);
 
 /// The sparse map's planes that may be the floor: near-horizontal (within max_tilt_deg of "up",
 /// the first keyframe's image up, -y of its camera), below the first keyframe's camera by 0.2

@@ -21,10 +21,12 @@
 // online_trajectory(), the map), so that a caller can write its outputs before it gives up.
 
 #include <atomic>
+#include <deque>
 #include <memory>
 #include <mutex>
 #include <opencv2/core.hpp>
 #include <optional>
+#include <unordered_map>
 #include <vector>
 
 #include "mcslam/core/camera.hpp"
@@ -271,6 +273,10 @@ class System {
   void stop_threads();
   /// Feeds the dense map from the mapper's keyframes and corrections.
   void connect_occupancy();
+  /// Each moving object's world box and velocity (ObjectReport::world_box, velocity).
+  void place_moving_objects(const cv::Mat& depth, const SE3& T_w_c, FrameResult& result);
+  /// Box centres (time, centre) of the moving objects' tracks over the last half second.
+  std::unordered_map<int, std::deque<std::pair<double, Eigen::Vector3d>>> object_tracks_;
   /// Throws BackgroundThreadError when a background thread has failed.
   void throw_if_background_failed() const;
   std::vector<FrameMotion::MovingRegion> expected_moving_regions(double timestamp) const;
