@@ -750,6 +750,15 @@ int main(int argc, char** argv) {
       std::cout << (info_json ? info.dump(2) + "\n" : mcslam::rosbag2::info_text(info));
       return 0;
     }
+    // The TUM folder to export and its camera, as `mcslam run` resolves it.
+    const auto open_export_source = [&] {
+      auto source = mcslam::io::FolderSource::open(export_sequence);
+      for (const auto& warning : source->warnings())
+        std::cerr << "mcslam: warning: " << warning << "\n";
+      return std::make_pair(
+          source, mcslam::slam::resolve_run_config(export_sequence, export_config,
+                                                   mcslam::io::CameraHints{}, export_preset));
+    };
     if (export_cmd->parsed() && export_format == "ros2") {
       mcslam::rosbag2::ExportOptions options;
       options.topics = ros2_topic_options(export_topics);
@@ -757,11 +766,7 @@ int main(int argc, char** argv) {
       options.depth_encoding = export_depth_encoding;
       options.storage = export_storage;
       options.compression = export_compression;
-      const auto source = mcslam::io::FolderSource::open(export_sequence);
-      for (const auto& warning : source->warnings())
-        std::cerr << "mcslam: warning: " << warning << "\n";
-      const mcslam::slam::RunConfig config = mcslam::slam::resolve_run_config(
-          export_sequence, export_config, mcslam::io::CameraHints{}, export_preset);
+      const auto [source, config] = open_export_source();
       const std::size_t frames =
           mcslam::rosbag2::export_recording(*source, config.camera, export_bag, options);
       if (!quiet)
@@ -781,11 +786,7 @@ int main(int argc, char** argv) {
       options.topics = topic_options(export_topics);
       options.rgb_encoding = export_rgb_encoding;
       options.depth_encoding = export_depth_encoding;
-      const auto source = mcslam::io::FolderSource::open(export_sequence);
-      for (const auto& warning : source->warnings())
-        std::cerr << "mcslam: warning: " << warning << "\n";
-      const mcslam::slam::RunConfig config = mcslam::slam::resolve_run_config(
-          export_sequence, export_config, mcslam::io::CameraHints{}, export_preset);
+      const auto [source, config] = open_export_source();
       const std::size_t frames =
           mcslam::ros::export_bag(*source, config.camera, export_bag, options);
       if (!quiet)

@@ -2,7 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <tuple>
+
+#include "mcslam/core/error.hpp"
 
 namespace mcslam::io {
 
@@ -42,6 +45,49 @@ std::vector<std::pair<std::size_t, std::size_t>> associate_stamps(const std::vec
   }
   std::sort(matches.begin(), matches.end());
   return matches;
+}
+
+namespace {
+
+std::string seconds(double t) {
+  char text[32];
+  std::snprintf(text, sizeof(text), "%.6f", t);
+  return text;
+}
+
+}  // namespace
+
+RecordingPairs pair_recording(const std::string& path, const std::string& rgb_topic,
+                              const std::string& depth_topic, const std::vector<double>& rgb,
+                              const std::vector<double>& depth, double max_difference,
+                              std::vector<std::string>& warnings) {
+  RecordingPairs out;
+  out.pairs = associate_stamps(rgb, depth, max_difference);
+  if (out.pairs.empty())
+    throw InputError(file_error(
+        path, "no colour image has a depth image within " + seconds(max_difference) +
+                  " s (colour " + seconds(rgb.front()) + "-" + seconds(rgb.back()) + ", depth " +
+                  seconds(depth.front()) + "-" + seconds(depth.back()) + ")"));
+  for (const auto& [r, d] : out.pairs)
+    out.frames.push_back({rgb[r], path + ":" + rgb_topic + "#" + std::to_string(r), depth[d],
+                          path + ":" + depth_topic + "#" + std::to_string(d)});
+  const std::size_t unpaired = rgb.size() - out.pairs.size();
+  if (unpaired > 0)
+    warnings.push_back(file_error(path, std::to_string(unpaired) +
+                                            " colour images have no depth image within " +
+                                            seconds(max_difference) + " s; skipped"));
+  return out;
+}
+
+void sort_by_time_unique(Trajectory& poses) {
+  std::stable_sort(poses.begin(), poses.end(), [](const StampedPose& a, const StampedPose& b) {
+    return a.timestamp < b.timestamp;
+  });
+  poses.erase(std::unique(poses.begin(), poses.end(),
+                          [](const StampedPose& a, const StampedPose& b) {
+                            return a.timestamp == b.timestamp;
+                          }),
+              poses.end());
 }
 
 }  // namespace mcslam::io

@@ -318,4 +318,13 @@ RgbdImages load_rgbd(const FrameEntry& frame, double depth_factor) {
   return images;
 }
 
+void check_image_size(const RgbdImages& images, int width, int height,
+                      const std::string& rgb_path) {
+  if (images.rgb.cols != width || images.rgb.rows != height)
+    throw InputError(file_error(rgb_path, "image is " + std::to_string(images.rgb.cols) + "x" +
+                                              std::to_string(images.rgb.rows) +
+                                              " but the camera is " + std::to_string(width) + "x" +
+                                              std::to_string(height)));
+}
+
 }  // namespace mcslam::io

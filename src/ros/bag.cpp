@@ -264,33 +264,16 @@ void BagSource::Impl::scan() {
                                             "' has no transform " + t.world_frame + " -> " +
                                             t.camera_frame + " (it has " + seen + ")"));
   }
-  std::sort(groundtruth.begin(), groundtruth.end(),
-            [](const StampedPose& a, const StampedPose& b) { return a.timestamp < b.timestamp; });
-  groundtruth.erase(std::unique(groundtruth.begin(), groundtruth.end(),
-                                [](const StampedPose& a, const StampedPose& b) {
-                                  return a.timestamp == b.timestamp;
-                                }),
-                    groundtruth.end());
+  io::sort_by_time_unique(groundtruth);
 }
 
 void BagSource::Impl::associate() {
   // As TUM's associate.py, as a TUM folder is read (io/association.hpp).
-  const double limit = options.max_time_difference;
-  pairs = io::associate_stamps(rgb.stamps, depth.stamps, limit);
-  if (pairs.empty())
-    throw InputError(file_error(
-        path, "no colour image has a depth image within " + seconds(limit) + " s (colour " +
-                  seconds(rgb.stamps.front()) + "-" + seconds(rgb.stamps.back()) + ", depth " +
-                  seconds(depth.stamps.front()) + "-" + seconds(depth.stamps.back()) + ")"));
-  for (const auto& [r, d] : pairs)
-    frames.push_back({rgb.stamps[r], path + ":" + options.topics.rgb + "#" + std::to_string(r),
-                      depth.stamps[d],
-                      path + ":" + options.topics.depth + "#" + std::to_string(d)});
-  const std::size_t unpaired = rgb.stamps.size() - pairs.size();
-  if (unpaired > 0)
-    warnings.push_back(file_error(path, std::to_string(unpaired) +
-                                            " colour images have no depth image within " +
-                                            seconds(limit) + " s; skipped"));
+  io::RecordingPairs paired =
+      io::pair_recording(path, options.topics.rgb, options.topics.depth, rgb.stamps, depth.stamps,
+                         options.max_time_difference, warnings);
+  pairs = std::move(paired.pairs);
+  frames = std::move(paired.frames);
 }
 
 std::shared_ptr<BagSource> BagSource::open(const std::string& path, const BagOptions& options) {
@@ -389,11 +372,7 @@ std::size_t export_bag(const io::FrameSource& source, const PinholeCamera& camer
     for (std::size_t i = 0; i < frames.size(); ++i) {
       const io::FrameEntry& f = frames[i];
       const io::RgbdImages images = source.load(i, camera.depth_factor);
-      if (images.rgb.cols != camera.width || images.rgb.rows != camera.height)
-        throw InputError(file_error(
-            f.rgb_path, "image is " + std::to_string(images.rgb.cols) + "x" +
-                            std::to_string(images.rgb.rows) + " but the camera is " +
-                            std::to_string(camera.width) + "x" + std::to_string(camera.height)));
+      io::check_image_size(images, camera.width, camera.height, f.rgb_path);
       sensor_msgs::Image rgb, depth;
       rgb.header.seq = depth.header.seq = static_cast<std::uint32_t>(i);
       rgb.header.stamp = stamp_of(f.rgb_timestamp);

@@ -112,11 +112,7 @@ std::size_t export_recording(const io::FrameSource& source, const PinholeCamera&
       const io::FrameEntry& f = frames[i];
       write_poses_until(std::min(f.rgb_timestamp, f.depth_timestamp));
       const io::RgbdImages images = source.load(i, camera.depth_factor);
-      if (images.rgb.cols != camera.width || images.rgb.rows != camera.height)
-        throw InputError(file_error(
-            f.rgb_path, "image is " + std::to_string(images.rgb.cols) + "x" +
-                            std::to_string(images.rgb.rows) + " but the camera is " +
-                            std::to_string(camera.width) + "x" + std::to_string(camera.height)));
+      io::check_image_size(images, camera.width, camera.height, f.rgb_path);
       detail::Header rgb_header, depth_header;
       rgb_header.stamp = stamp_of(f.rgb_timestamp);
       depth_header.stamp = stamp_of(f.depth_timestamp);

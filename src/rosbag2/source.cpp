@@ -320,33 +320,16 @@ void RecordingSource::Impl::scan() {
                                             "' has no transform " + t.world_frame + " -> " +
                                             t.camera_frame + " (it has " + seen + ")"));
   }
-  std::sort(groundtruth.begin(), groundtruth.end(),
-            [](const StampedPose& a, const StampedPose& b) { return a.timestamp < b.timestamp; });
-  groundtruth.erase(std::unique(groundtruth.begin(), groundtruth.end(),
-                                [](const StampedPose& a, const StampedPose& b) {
-                                  return a.timestamp == b.timestamp;
-                                }),
-                    groundtruth.end());
+  io::sort_by_time_unique(groundtruth);
 }
 
 void RecordingSource::Impl::associate() {
   // As TUM's associate.py, as a TUM folder is read (io/association.hpp).
-  const double limit = options.max_time_difference;
-  pairs = io::associate_stamps(rgb.stamps, depth.stamps, limit);
-  if (pairs.empty())
-    throw InputError(file_error(
-        path, "no colour image has a depth image within " + seconds(limit) + " s (colour " +
-                  seconds(rgb.stamps.front()) + "-" + seconds(rgb.stamps.back()) + ", depth " +
-                  seconds(depth.stamps.front()) + "-" + seconds(depth.stamps.back()) + ")"));
-  for (const auto& [r, d] : pairs)
-    frames.push_back({rgb.stamps[r], path + ":" + options.topics.rgb + "#" + std::to_string(r),
-                      depth.stamps[d],
-                      path + ":" + options.topics.depth + "#" + std::to_string(d)});
-  const std::size_t unpaired = rgb.stamps.size() - pairs.size();
-  if (unpaired > 0)
-    warnings.push_back(file_error(path, std::to_string(unpaired) +
-                                            " colour images have no depth image within " +
-                                            seconds(limit) + " s; skipped"));
+  io::RecordingPairs paired =
+      io::pair_recording(path, options.topics.rgb, options.topics.depth, rgb.stamps, depth.stamps,
+                         options.max_time_difference, warnings);
+  pairs = std::move(paired.pairs);
+  frames = std::move(paired.frames);
 }
 
 cv::Mat RecordingSource::Impl::decode(const ImageTopic& topic, const MessageRef& ref, bool is_depth,

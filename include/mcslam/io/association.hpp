@@ -5,8 +5,12 @@
 // frames.
 
 #include <cstddef>
+#include <string>
 #include <utility>
 #include <vector>
+
+#include "mcslam/core/trajectory.hpp"
+#include "mcslam/io/sequence.hpp"
 
 namespace mcslam::io {
 
@@ -16,5 +20,20 @@ namespace mcslam::io {
 std::vector<std::pair<std::size_t, std::size_t>> associate_stamps(const std::vector<double>& rgb,
                                                                   const std::vector<double>& depth,
                                                                   double max_difference);
+
+/// A recording's frames (ROS 1 bag, ROS 2 recording): its colour and depth messages paired as
+/// above; each frame's paths are "<path>:<topic>#<message index>". InputError naming `path`
+/// when no pair exists; a warning (appended) for colour images left without depth.
+struct RecordingPairs {
+  std::vector<std::pair<std::size_t, std::size_t>> pairs;  ///< (colour, depth) message indices
+  std::vector<FrameEntry> frames;
+};
+RecordingPairs pair_recording(const std::string& path, const std::string& rgb_topic,
+                              const std::string& depth_topic, const std::vector<double>& rgb,
+                              const std::vector<double>& depth, double max_difference,
+                              std::vector<std::string>& warnings);
+
+/// Ground truth read from messages, in time order, one pose per time stamp (the first).
+void sort_by_time_unique(Trajectory& poses);
 
 }  // namespace mcslam::io

@@ -62,6 +62,9 @@ struct RgbdImages {
   cv::Mat depth;  ///< CV_32FC1, metres; 0 = no depth
 };
 
+/// InputError naming `rgb_path` when the colour image is not width x height (the camera's).
+void check_image_size(const RgbdImages& images, int width, int height, const std::string& rgb_path);
+
 /// Loads one frame: the RGB image (png or jpg) as 8-bit BGR and the 16-bit single-channel depth
 /// PNG divided by `depth_factor` (raw value per metre; 0 stays 0). Throws InputError naming the
 /// file when an image cannot be read, the depth image is not 16-bit single-channel, or the sizes
