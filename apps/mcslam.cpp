@@ -657,6 +657,9 @@ int main(int argc, char** argv) {
   synth_cmd->add_option("--person-speed", dyn.person_speed,
                         "Person 1's peak speed (m/s); the others walk at fixed multiples of it");
   synth_cmd->add_option("--chair-speed", dyn.chair_speed, "Chair's peak speed (m/s)");
+  synth_cmd->add_option("--chair-push", dyn.chair_push,
+                        "Push the chair once along +x by this many metres, then it stands still "
+                        "(0: it slides back and forth)");
   synth_cmd->add_option("--person-scale", dyn.person_scale, "Person 1's size factor");
   synth_cmd->add_option("--chair-scale", dyn.chair_scale, "Chair's size factor");
   synth_cmd->add_option("--start-time", dyn.start_time, "Scene time (s) when the objects start");

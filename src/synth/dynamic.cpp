@@ -170,12 +170,35 @@ SceneObject make_crowd_person(int number, const SynthOptions::DynamicObjects& op
   return person;
 }
 
+namespace {
+
+/// The chair pushed once along +x by options.chair_push (SynthOptions::DynamicObjects): from
+/// the corner's -x end, a rest-to-rest smoothstep 3u^2 - 2u^3 over 1.5 * push / speed seconds
+/// (its peak speed, at the middle, is 1.5 * push / duration = speed), then still.
+void set_pushed_chair_motion(SceneObject& chair, const SynthOptions::DynamicObjects& options) {
+  const Eigen::Vector3d h = chair.half_extents;
+  const double push = options.chair_push, start = options.start_time;
+  const double duration = options.chair_speed > 0.0 ? 1.5 * push / options.chair_speed : 0.0;
+  const double x0 = kChairArea.x0 + h.x(), y = kChairArea.mid_y();
+  chair.pose_at = [=](double t) {
+    double u = duration > 0.0 ? std::clamp((t - start) / duration, 0.0, 1.0) : 0.0;
+    u = u * u * (3.0 - 2.0 * u);
+    return SE3(Eigen::Quaterniond::Identity(), Eigen::Vector3d(x0 + push * u, y, h.z()));
+  };
+}
+
+}  // namespace
+
 SceneObject make_chair(const SynthOptions::DynamicObjects& options) {
   SceneObject chair;
   chair.class_name = "chair";
   chair.motion = MotionKind::kSlide;
   const Eigen::Vector3d h = options.chair_scale * Eigen::Vector3d(0.25, 0.25, 0.45);
   chair.half_extents = h;
+  if (options.chair_push > 0.0) {
+    set_pushed_chair_motion(chair, options);
+    return chair;
+  }
   const Area& area = kChairArea;
   // A square of half side a turned by psi spans a (|cos psi| + |sin psi|) = sqrt(2) a
   // sin(|psi| + 45 deg) either side of its centre: the largest swing up to 25 deg that fits the
@@ -204,3 +227,12 @@ SceneObject make_chair(const SynthOptions::DynamicObjects& options) {
 }
 
 }  // namespace mcslam::synth::detail
+
+namespace mcslam::synth {
+
+double SynthOptions::DynamicObjects::max_chair_push(double chair_scale) {
+  // The chair (half side 0.25 m * scale, not turning) from one x end of its corner to the other.
+  return std::max(0.0, 2.0 * detail::kChairArea.half_x() - 0.5 * chair_scale);
+}
+
+}  // namespace mcslam::synth

@@ -111,6 +111,10 @@ std::optional<std::string> SynthOptions::check() const {
     return "dynamic.person_scale must be finite and in" + range(D::kMinScale, D::kMaxPersonScale);
   if (!in(dynamic.chair_scale, D::kMinScale, D::kMaxChairScale))
     return "dynamic.chair_scale must be finite and in" + range(D::kMinScale, D::kMaxChairScale);
+  if (!in(dynamic.chair_push, 0.0, D::max_chair_push(dynamic.chair_scale)))
+    return "dynamic.chair_push must be finite and in" +
+           range(0.0, D::max_chair_push(dynamic.chair_scale)) + " m at chair_scale " +
+           format_number(dynamic.chair_scale);
   if (!finite(dynamic.start_time) || dynamic.start_time < 0.0)
     return "dynamic.start_time must be finite and >= 0 s";
   if (dynamic.people < 0 || dynamic.people > D::kMaxPeople)

@@ -84,7 +84,13 @@ std::string objects_header_json(const SyntheticSequence& sequence, int min_pixel
   s += "  \"image_width\": " + std::to_string(camera.width) +
        ", \"image_height\": " + std::to_string(camera.height) + ",\n";
   s += "  \"fps\": " + format_double(sequence.options().fps) + ",\n";
-  s += "  \"min_pixels\": " + std::to_string(min_pixels) + ",\n  \"objects\": [";
+  s += "  \"min_pixels\": " + std::to_string(min_pixels) + ",\n";
+  const Scene& scene = sequence.scene();
+  s += "  \"room\": {\"min\": [" + format_double(scene.room_min.x()) + ", " +
+       format_double(scene.room_min.y()) + ", " + format_double(scene.room_min.z()) +
+       "], \"max\": [" + format_double(scene.room_max.x()) + ", " +
+       format_double(scene.room_max.y()) + ", " + format_double(scene.room_max.z()) + "]},\n";
+  s += "  \"objects\": [";
   const auto& objects = sequence.scene().objects;
   char buffer[512];
   for (std::size_t k = 0; k < objects.size(); ++k) {

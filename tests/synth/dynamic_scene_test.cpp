@@ -346,6 +346,59 @@ TEST(DynamicScene, ChairSlidesOnTheFloorKeepingEveryHeight) {
   }
 }
 
+TEST(DynamicScene, APushedChairMovesOnceAndStopsClearOfEverything) {
+  for (double scale : {Dyn::kMinScale, 1.0, Dyn::kMaxChairScale}) {
+    SCOPED_TRACE(scale);
+    SynthOptions o = dynamic_options(1.0, scale);
+    o.dynamic.chair_push = Dyn::max_chair_push(scale);
+    o.dynamic.chair_speed = 0.5;
+    const Scene scene = motion_scene_of(o);
+    const SceneObject& chair = scene.objects[kChair];
+    const double start = o.dynamic.start_time;
+    const double duration = 1.5 * o.dynamic.chair_push / o.dynamic.chair_speed;
+    const SE3 first = chair.pose_at(0.0), last = chair.pose_at(start + duration);
+    // At rest before the push, moved by exactly chair_push along +x, still afterwards.
+    EXPECT_EQ((chair.pose_at(start).translation() - first.translation()).norm(), 0.0);
+    const Eigen::Vector3d moved = last.translation() - first.translation();
+    EXPECT_NEAR(moved.x(), o.dynamic.chair_push, 1e-12);
+    EXPECT_NEAR(moved.y(), 0.0, 1e-12);
+    EXPECT_NEAR(moved.z(), 0.0, 1e-12);
+    EXPECT_EQ((chair.pose_at(start + duration + 5.0).translation() - last.translation()).norm(),
+              0.0);
+    EXPECT_EQ(chair.pose_at(start + 0.5 * duration).rotation(), Eigen::Matrix3d::Identity());
+    // Peak speed chair_speed, in the middle of the push.
+    double peak = 0.0;
+    for (int i = 0; i < 1000; ++i) {
+      const double t = start + duration * i / 1000.0;
+      peak = std::max(
+          peak,
+          (chair.pose_at(t + 1e-4).translation() - chair.pose_at(t).translation()).norm() / 1e-4);
+    }
+    EXPECT_NEAR(peak, o.dynamic.chair_speed, 1e-3);
+    // Clear of the room and of every other object all along.
+    for (int i = 0; i <= 60; ++i) {
+      const double t = start + duration * i / 60.0;
+      const Obb box = obb_of(chair, t);
+      for (const Eigen::Vector3d& p : corners(box)) {
+        EXPECT_TRUE((p.array() >= scene.room_min.array()).all());
+        EXPECT_TRUE((p.array() <= scene.room_max.array()).all());
+      }
+      for (int j = 0; j < static_cast<int>(scene.objects.size()); ++j) {
+        if (j != kChair) {
+          EXPECT_FALSE(within(box, obb_of(scene.objects[j], t), 0.02)) << j;
+        }
+      }
+    }
+  }
+  EXPECT_NEAR(Dyn::max_chair_push(1.0), 1.21, 1e-9);
+  SynthOptions o = dynamic_options();
+  o.dynamic.chair_push = Dyn::max_chair_push(1.0) + 0.01;
+  ASSERT_TRUE(o.check().has_value());
+  EXPECT_NE(o.check()->find("dynamic.chair_push"), std::string::npos) << *o.check();
+  o.dynamic.chair_push = -0.1;
+  EXPECT_TRUE(o.check().has_value());
+}
+
 TEST(DynamicScene, PersonHeightsAndTiltChangeEveryFrame) {
   for (double scale : {Dyn::kMinScale, 1.0, Dyn::kMaxPersonScale}) {
     const SynthOptions o = dynamic_options(scale, 1.0);

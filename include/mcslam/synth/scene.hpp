@@ -99,6 +99,12 @@ struct SynthOptions {
     double person_speed = 1.0;
     /// Time scale of the chair's motion: its peak speed on the floor in m/s.
     double chair_speed = 0.5;
+    /// 0: the chair slides back and forth for ever (below). > 0: it is pushed once, straight
+    /// along +x by this many metres (peak speed chair_speed, smoothly from rest to rest, no
+    /// turning), and then stands still: the case of a map whose obstacle moved, with a first
+    /// place that must become free and a final one that must be occupied. At most
+    /// max_chair_push(chair_scale) (what the chair's corner of the room leaves).
+    double chair_push = 0.0;
     /// Size factors of person 1 (0.5 x 0.35 x 1.7 m at 1) and the chair (0.5 x 0.5 x 0.9 m). The
     /// crowd (persons 2 .. 6) keeps its own sizes: their paths are fitted between the camera and
     /// the furniture, with no room to grow.
@@ -109,6 +115,8 @@ struct SynthOptions {
 
     /// The number of people in the scene: people when enabled and person, else 0.
     int people_in_scene() const { return enabled && person ? people : 0; }
+    /// The longest chair_push the chair's corner leaves at chair_scale (1.21 m at scale 1).
+    static double max_chair_push(double chair_scale);
   };
   DynamicObjects dynamic;
 
@@ -222,7 +230,10 @@ struct Scene {
 ///    seen when the camera looks left), sliding back and forth mainly along x (peak speed exactly
 ///    chair_speed m/s) and turning about the vertical axis (+-25 deg up to scale 1.2; less above,
 ///    so that it fits the corner: +-15 deg at 1.3, +-9 deg at 1.4, where it only slides along x).
-///    It stops for an instant where it reverses (a frame may then count as not moving).
+///    It stops for an instant where it reverses (a frame may then count as not moving). With
+///    chair_push > 0 it stands instead at the corner's -x end until start_time, is pushed along
+///    +x by chair_push metres (a smooth rest-to-rest motion of peak speed chair_speed, taking
+///    1.5 * chair_push / chair_speed seconds, without turning) and then stands still.
 ///  - persons 2 .. 6, the crowd (MotionKind::kFree, each with its own texture): boxes of about
 ///    person 1's size (fixed: person_scale is person 1's only), each walking straight back and
 ///    forth along its own lane at its own fixed multiple (0.6-1.0) of person_speed, from its own

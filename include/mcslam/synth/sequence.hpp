@@ -93,6 +93,8 @@ class SyntheticSequence {
 ///     "image_width": 640, "image_height": 480,
 ///     "fps": 30.0,
 ///     "min_pixels": 400,                       (threshold of detections.json)
+///     "room": {"min": [-3, -2.5, 0], "max": [3, 2.5, 3]},   (Scene::room_min, room_max: the
+///                                               floor, walls and ceiling, world frame)
 ///     "objects": [                             (Scene::objects, in label order)
 ///       {"index": 0, "class": "dining table", "class_id": 60, "motion": "static",
 ///        "size": [0.8, 1.2, 0.75], "detected": true},   (size: box edge lengths along the
