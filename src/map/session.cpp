@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <opencv2/core.hpp>
 #include <optional>
 #include <string_view>
 #include <type_traits>
@@ -26,7 +27,9 @@ static_assert(std::endian::native == std::endian::little,
 constexpr char kMagic[8] = {'M', 'C', 'S', 'L', 'S', 'E', 'S', '\0'};
 /// 2: line descriptors are mcslam's own LBD (line_band_descriptor.hpp), no longer OpenCV's; a
 /// version 1 file's lines would match nothing, so it is refused rather than half used.
-constexpr std::uint32_t kFormatVersion = 2;
+/// 3: the dense map's keyframe samples follow the culled keyframes (a version 2 file has no
+/// dense map to rebuild: refused with a message that says so).
+constexpr std::uint32_t kFormatVersion = 3;
 constexpr std::size_t kHeaderBytes = sizeof(kMagic) + sizeof(std::uint32_t);
 constexpr std::size_t kChecksumBytes = sizeof(std::uint64_t);
 
@@ -58,6 +61,7 @@ constexpr std::size_t kMapLineMinBytes =
     kU64 + 2 * kVector3Bytes + kDescriptorBytes + kU64 + kU64 + 2 * kU32;
 constexpr std::size_t kMapPlaneMinBytes = kU64 + kVector3Bytes + kF64 + kU64 + kU64 + kU64;
 constexpr std::size_t kErasedBytes = 2 * kU64 + kPoseBytes;
+constexpr std::size_t kDenseMinBytes = kU64 + kPoseBytes + 4 * kF64 + 5 * kU32 + 1;
 
 // --- writing ---
 
@@ -111,11 +115,33 @@ class Writer {
     count(flags.size());
     out_.append(flags.begin(), flags.end());
   }
+  /// A continuous matrix's bytes (row by row).
+  void matrix(const cv::Mat& m) {
+    for (int row = 0; row < m.rows; ++row) out_.append(m.ptr<char>(row), m.cols * m.elemSize());
+  }
   std::string& bytes() { return out_; }
 
  private:
   std::string out_;
 };
+
+void write_dense_keyframe(Writer& w, const mapping::KeyframeSamples& kf) {
+  w.put<std::uint64_t>(kf.id);
+  w.pose(kf.T_w_c);
+  w.put<double>(kf.camera.fx);
+  w.put<double>(kf.camera.fy);
+  w.put<double>(kf.camera.cx);
+  w.put<double>(kf.camera.cy);
+  w.put<std::int32_t>(kf.camera.width);
+  w.put<std::int32_t>(kf.camera.height);
+  w.put<std::int32_t>(kf.step);
+  w.put<std::int32_t>(kf.depth_mm.rows);
+  w.put<std::int32_t>(kf.depth_mm.cols);
+  w.matrix(kf.depth_mm);
+  w.matrix(kf.kind);
+  w.put<std::uint8_t>(kf.colour.empty() ? 0 : 1);
+  if (!kf.colour.empty()) w.matrix(kf.colour);
+}
 
 void write_info(Writer& w, const SessionInfo& info) {
   const PinholeCamera& c = info.camera;
@@ -468,6 +494,16 @@ class Reader {
     return out;
   }
 
+  /// A rows x cols matrix of `type`, its bytes as Writer::matrix wrote them.
+  cv::Mat matrix(int rows, int cols, int type) {
+    cv::Mat m(rows, cols, type);
+    const std::size_t n = static_cast<std::size_t>(rows) * cols * m.elemSize();
+    need(n);
+    std::memcpy(m.data, data_.data() + at_, n);
+    at_ += n;
+    return m;
+  }
+
   std::size_t remaining() const { return end_ - at_; }
   /// Where the reader is, for messages ("keyframe 12").
   void set_context(std::string context) { context_ = std::move(context); }
@@ -582,6 +618,43 @@ std::uint64_t read_id(Reader& r, std::optional<std::uint64_t>& previous, const c
   return id;
 }
 
+/// One dense-map keyframe (write_dense_keyframe), checked as OccupancyMap::insert requires.
+mapping::KeyframeSamples read_dense_keyframe(Reader& r, const SessionInfo& info) {
+  mapping::KeyframeSamples kf;
+  kf.id = r.get<std::uint64_t>();
+  r.set_context("dense map keyframe " + std::to_string(kf.id));
+  kf.T_w_c = r.pose();
+  if (!finite(kf.T_w_c)) r.fail("a non-finite pose or a non-unit rotation");
+  kf.camera = info.camera;
+  kf.camera.distortion = {0.0, 0.0, 0.0, 0.0, 0.0};
+  kf.camera.fx = r.get<double>();
+  kf.camera.fy = r.get<double>();
+  kf.camera.cx = r.get<double>();
+  kf.camera.cy = r.get<double>();
+  kf.camera.width = r.get<std::int32_t>();
+  kf.camera.height = r.get<std::int32_t>();
+  if (auto problem = kf.camera.check()) r.fail("camera: " + *problem);
+  if (kf.camera.width > kMaxImageSide || kf.camera.height > kMaxImageSide)
+    r.fail("image size above " + std::to_string(kMaxImageSide));
+  kf.step = r.get<std::int32_t>();
+  const auto rows = r.get<std::int32_t>();
+  const auto cols = r.get<std::int32_t>();
+  if (kf.step < 1 || rows != kf.camera.height / kf.step || cols != kf.camera.width / kf.step)
+    r.fail("samples " + std::to_string(cols) + "x" + std::to_string(rows) + " at step " +
+           std::to_string(kf.step) + " do not fit its " + std::to_string(kf.camera.width) + "x" +
+           std::to_string(kf.camera.height) + " image");
+  kf.depth_mm = r.matrix(rows, cols, CV_16UC1);
+  kf.kind = r.matrix(rows, cols, CV_8UC1);
+  double max_kind = 0.0;
+  cv::minMaxLoc(kf.kind, nullptr, &max_kind);
+  if (max_kind > mapping::KeyframeSamples::kMover)
+    r.fail("a sample of kind " + std::to_string(static_cast<int>(max_kind)));
+  const auto has_colour = r.get<std::uint8_t>();
+  if (has_colour > 1) r.fail("its colour flag is " + std::to_string(has_colour));
+  if (has_colour == 1) kf.colour = r.matrix(rows, cols, CV_8UC3);
+  return kf;
+}
+
 Session read_body(Reader& r) {
   Session session;
   r.set_context("session info");
@@ -674,17 +747,47 @@ Session read_body(Reader& r) {
   }
 
   r.set_context("");
+  const std::size_t n_dense = r.count(kDenseMinBytes, "dense map keyframe");
+  session.dense.reserve(n_dense);
+  for (std::size_t i = 0; i < n_dense; ++i) {
+    session.dense.push_back(read_dense_keyframe(r, session.info));
+    if (i > 0 && session.dense[i].id <= session.dense[i - 1].id)
+      r.fail("dense map keyframes are not in increasing id order");
+  }
+
+  r.set_context("");
   if (r.remaining() != 0) r.fail(std::to_string(r.remaining()) + " unexpected bytes after the map");
   if (auto problem = check_map(map, info)) r.fail(*problem);
   return session;
 }
 
+/// What read_dense_keyframe requires of the dense map's keyframes (ids increasing, samples
+/// that fit their camera), so that a file that is written always loads.
+std::optional<std::string> check_dense(const std::vector<mapping::KeyframeSamples>& dense) {
+  for (std::size_t i = 0; i < dense.size(); ++i) {
+    const mapping::KeyframeSamples& kf = dense[i];
+    const std::string name = "dense map keyframe " + std::to_string(kf.id);
+    if (i > 0 && kf.id <= dense[i - 1].id) return name + ": ids not in increasing order";
+    if (!finite(kf.T_w_c)) return name + " has a non-finite pose or a non-unit rotation";
+    if (auto problem = kf.camera.check()) return name + ": camera: " + *problem;
+    if (kf.step < 1 || kf.depth_mm.type() != CV_16UC1 || kf.kind.type() != CV_8UC1 ||
+        kf.depth_mm.rows != kf.camera.height / kf.step ||
+        kf.depth_mm.cols != kf.camera.width / kf.step || kf.kind.size() != kf.depth_mm.size() ||
+        (!kf.colour.empty() &&
+         (kf.colour.type() != CV_8UC3 || kf.colour.size() != kf.depth_mm.size())))
+      return name + ": samples that do not fit its camera";
+  }
+  return std::nullopt;
+}
+
 }  // namespace
 
-void save_session(const std::string& path, const Map& map, const SessionInfo& info) {
+void save_session(const std::string& path, const Map& map, const SessionInfo& info,
+                  const std::vector<mapping::KeyframeSamples>& dense) {
   auto problem = check_info(info);
   if (!problem) problem = check_map(map, info);
   if (!problem) problem = check_pyramids(map, info);
+  if (!problem) problem = check_dense(dense);
   if (problem) throw InputError(file_error(path, "cannot save the map: " + *problem));
 
   Writer w;
@@ -755,6 +858,9 @@ void save_session(const std::string& path, const Map& map, const SessionInfo& in
     w.pose(erased.T_this_parent);
   }
 
+  w.count(dense.size());
+  for (const mapping::KeyframeSamples& kf : dense) write_dense_keyframe(w, kf);
+
   w.put<std::uint64_t>(place::file_checksum(w.bytes()));
   io::write_file_atomic(path, w.bytes());
 }
@@ -776,6 +882,14 @@ Session load_session(const std::string& path) {
         file_error(path, "truncated session file (" + std::to_string(data.size()) + " bytes)"));
   std::uint32_t version = 0;
   std::memcpy(&version, data.data() + sizeof(kMagic), sizeof(version));
+  if (version == 2)
+    throw InputError(
+        file_error(path,
+                   "session format version 2, from before sessions kept the dense map; this build "
+                   "reads version " +
+                       std::to_string(kFormatVersion) +
+                       ": run the sequence again with --save-session to make a session of this "
+                       "format"));
   if (version != kFormatVersion)
     throw InputError(file_error(path, "session format version " + std::to_string(version) +
                                           ", this build reads version " +

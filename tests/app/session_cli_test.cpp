@@ -92,6 +92,26 @@ TEST_F(SessionCli, LocalisesInASavedMapWithoutChangingIt) {
   // A loaded session has no pose before a loss to start from.
   EXPECT_FALSE(again["relocalisation"]["events"][0]["from_last_pose"].get<bool>());
   EXPECT_EQ(again["relocalisation"]["from_last_pose"].get<int>(), 0);
+  // The dense map came with the session (its keyframes rebuilt it) and the localised views
+  // extended it (integrated, not stored): 90 frames at 30 Hz, one view every 0.5 s.
+  const nlohmann::json& dense_first = first["occupancy"];
+  const nlohmann::json& dense = again["occupancy"];
+  ASSERT_GT(dense_first["keyframes"].get<int>(), 0);
+  EXPECT_EQ(dense["keyframes"], dense_first["keyframes"]);
+  EXPECT_GE(dense["integrated"].get<int>(), dense_first["keyframes"].get<int>() + 4);
+  EXPECT_TRUE(fs::exists(*dir_ / "localize" / "grid.pgm"));
+  const int occupied_first = dense_first["grid"]["cells"]["occupied"].get<int>();
+  const int occupied = dense["grid"]["cells"]["occupied"].get<int>();
+  EXPECT_GT(occupied_first, 0);
+  EXPECT_NEAR(occupied, occupied_first, 0.2 * occupied_first);
+}
+
+TEST_F(SessionCli, ASessionWithoutTheDenseMapIsRefusedWithWhatToDo) {
+  // Version 2 files (before the dense map was saved): one error that says what to do.
+  const std::string path = edited("version2.session", [](std::string& b) { b[8] = 2; });
+  const CliResult r =
+      run("--output " + quote(dir_->file("v2")) + " --load-session " + quote(path) + " --localize");
+  expect_one_error(r, "version2.session", "before sessions kept the dense map");
 }
 
 TEST_F(SessionCli, MapsOnInALoadedSession) {

@@ -11,6 +11,7 @@
 #include <iterator>
 #include <limits>
 #include <memory>
+#include <opencv2/core.hpp>
 #include <random>
 #include <string>
 #include <vector>
@@ -371,6 +372,76 @@ TEST(SessionFile, RoundTripRestoresEveryFieldAndTheSameBytes) {
   EXPECT_EQ(loaded.add_keyframe(std::move(kf)), 8u);
 }
 
+/// Dense-map keyframe samples as OccupancyMap keeps them (camera 32 x 24, step 4).
+std::vector<mapping::KeyframeSamples> make_dense(int n, bool colour) {
+  std::vector<mapping::KeyframeSamples> out;
+  cv::setRNGSeed(17);
+  for (int k = 0; k < n; ++k) {
+    mapping::KeyframeSamples s;
+    s.id = static_cast<mapping::KeyframeId>(3 * k + 1);
+    s.T_w_c = SE3(Eigen::Quaterniond(Eigen::AngleAxisd(0.1 * k, Eigen::Vector3d::UnitY())),
+                  Eigen::Vector3d(0.1 * k, 0.0, 0.2));
+    s.camera = test::make_camera(30.0, 30.0, 15.5, 11.5);
+    s.camera.width = 32;
+    s.camera.height = 24;
+    s.step = 4;
+    s.depth_mm.create(6, 8, CV_16UC1);
+    cv::randu(s.depth_mm, 0, 5000);
+    s.kind = cv::Mat::zeros(6, 8, CV_8UC1);
+    s.kind.at<std::uint8_t>(2, 3) = mapping::KeyframeSamples::kDynamic;
+    s.kind.at<std::uint8_t>(4, 1) = mapping::KeyframeSamples::kMover;
+    if (colour) {
+      s.colour.create(6, 8, CV_8UC3);
+      cv::randu(s.colour, 0, 256);
+    }
+    out.push_back(std::move(s));
+  }
+  return out;
+}
+
+TEST(SessionFile, DenseMapSamplesRoundTripExactly) {
+  Map map;
+  build_map(map, 4);
+  const test::TempDir dir("mcslam_session_test");
+  std::vector<mapping::KeyframeSamples> dense = make_dense(3, true);
+  dense[1].colour.release();  // a keyframe without colour
+  save_session(dir.file("dense.session"), map, make_info(), dense);
+  const Session session = load_session(dir.file("dense.session"));
+  expect_same_map(map, *session.map);
+  ASSERT_EQ(session.dense.size(), dense.size());
+  for (std::size_t k = 0; k < dense.size(); ++k) {
+    SCOPED_TRACE(k);
+    const auto& a = dense[k];
+    const auto& b = session.dense[k];
+    EXPECT_EQ(b.id, a.id);
+    expect_same_pose(b.T_w_c, a.T_w_c);
+    EXPECT_EQ(b.camera.fx, a.camera.fx);
+    EXPECT_EQ(b.camera.cy, a.camera.cy);
+    EXPECT_EQ(b.camera.width, a.camera.width);
+    EXPECT_EQ(b.step, a.step);
+    EXPECT_EQ(cv::norm(b.depth_mm, a.depth_mm, cv::NORM_INF), 0.0);
+    EXPECT_EQ(cv::norm(b.kind, a.kind, cv::NORM_INF), 0.0);
+    ASSERT_EQ(b.colour.empty(), a.colour.empty());
+    if (!a.colour.empty()) {
+      EXPECT_EQ(cv::norm(b.colour, a.colour, cv::NORM_INF), 0.0);
+    }
+  }
+  // The same bytes again from what was loaded.
+  save_session(dir.file("again.session"), *session.map, session.info, session.dense);
+  EXPECT_TRUE(same_bytes(dir.file("again.session"), dir.file("dense.session")));
+  // Samples that could not be read back are refused before anything is written.
+  std::vector<mapping::KeyframeSamples> bad = make_dense(2, false);
+  bad[1].id = bad[0].id;
+  const std::string path = dir.file("bad.session");
+  test::expect_input_error([&] { save_session(path, map, make_info(), bad); },
+                           {path, "dense map keyframe", "increasing order"});
+  bad = make_dense(1, false);
+  bad[0].kind = cv::Mat::zeros(5, 8, CV_8UC1);
+  test::expect_input_error([&] { save_session(path, map, make_info(), bad); },
+                           {path, "dense map keyframe 1", "do not fit"});
+  EXPECT_FALSE(std::filesystem::exists(path));
+}
+
 TEST(SessionFile, OneMapAlwaysGivesTheSameBytes) {
   const test::TempDir dir("mcslam_session_test");
   Map a;
@@ -393,8 +464,8 @@ TEST(SessionFile, EmptyMapRoundTrips) {
   const test::TempDir dir("mcslam_session_test");
   const Map map;
   save_session(dir.file("empty.session"), map, make_info());
-  // Header (12), info (124), counters (48), five empty lists (40), checksum (8).
-  EXPECT_EQ(std::filesystem::file_size(dir.file("empty.session")), 232u);
+  // Header (12), info (124), counters (48), six empty lists (48), checksum (8).
+  EXPECT_EQ(std::filesystem::file_size(dir.file("empty.session")), 240u);
   const Session session = load_session(dir.file("empty.session"));
   expect_same_map(map, *session.map);
   EXPECT_EQ(session.map->last_keyframe_id(), kNoId);
@@ -458,10 +529,13 @@ TEST_F(SessionFileErrors, MissingEmptyForeignAndNewerFiles) {
   expect_error("vocabulary.session", "MCSLVOC" + std::string(1, '\0') + bytes_.substr(8),
                {"not an mcslam session"});
   std::string version = bytes_;
-  version[8] = 3;
-  expect_error("version.session", version, {"version 3", "reads version 2"});
+  version[8] = 4;
+  expect_error("version.session", version, {"version 4", "reads version 3"});
+  version[8] = 2;
+  expect_error("dense.session", version,
+               {"version 2", "before sessions kept the dense map", "--save-session"});
   version[8] = 1;
-  expect_error("old.session", version, {"version 1", "reads version 2"});
+  expect_error("old.session", version, {"version 1", "reads version 3"});
 }
 
 TEST_F(SessionFileErrors, TruncatedFilesAreOneErrorNamingTheFile) {
@@ -542,11 +616,17 @@ struct Handmade {
   std::int32_t observed_feature = 0;
   std::uint64_t next_point = 1;
   std::uint64_t keyframes = 1;  // 2: keyframe 0 twice
+  // One dense-map keyframe (id 4) of a 16 x 8 camera sampled at step 4: 4 x 2 samples.
+  std::uint64_t dense = 1;            // records written
+  std::uint64_t dense_announced = 0;  // the count written before them (0: `dense`)
+  std::int32_t dense_step = 4;
+  std::uint8_t dense_kind = 2;
+  std::uint8_t dense_colour = 1;
   std::string trailing;
 
   std::string bytes() const {
     Bytes b;
-    b.raw(std::string("MCSLSES") + '\0').put<std::uint32_t>(2);  // format version
+    b.raw(std::string("MCSLSES") + '\0').put<std::uint32_t>(3);  // format version
     // Session info: camera, vocabulary, ORB pyramid.
     b.f64(fx).f64(525.0).f64(319.5).f64(239.5).i32(640).i32(480);
     for (int i = 0; i < 5; ++i) b.f64(0.0);
@@ -574,6 +654,16 @@ struct Handmade {
     b.f64(0).f64(0).f64(1).f64(1.0).f64(4.0).u64(0);         // normal, distances, first keyframe
     b.put<std::uint8_t>(1).put<std::uint8_t>(2).put<std::uint8_t>(3).i32(2).i32(1);
     b.u64(0).u64(0).u64(0);  // no lines, planes, culled keyframes
+    b.u64(dense_announced != 0 ? dense_announced : dense);
+    for (std::uint64_t k = 0; k < dense; ++k) {
+      b.u64(4).f64(1).f64(0).f64(0).f64(0).f64(0).f64(0).f64(0.5);  // id, pose
+      b.f64(10.0).f64(10.0).f64(7.5).f64(3.5).i32(16).i32(8);       // camera
+      b.i32(dense_step).i32(2).i32(4);                              // step, rows, cols
+      for (int i = 0; i < 8; ++i) b.put<std::uint16_t>(static_cast<std::uint16_t>(1000 + i));
+      for (int i = 0; i < 8; ++i) b.put<std::uint8_t>(i == 5 ? dense_kind : 0);
+      b.put<std::uint8_t>(dense_colour);
+      if (dense_colour == 1) b.zeros(8 * 3);
+    }
     b.raw(trailing);
     return b.sealed();
   }
@@ -592,6 +682,17 @@ TEST_F(SessionFileErrors, HandmadeFileLoadsAsTheFormatSays) {
   EXPECT_EQ(map.point(0)->color, (std::array<std::uint8_t, 3>{1, 2, 3}));
   EXPECT_EQ(map.counters().version, 3u);
   EXPECT_EQ(session.info.camera.fx, 525.0);
+  ASSERT_EQ(session.dense.size(), 1u);
+  const mapping::KeyframeSamples& dense = session.dense[0];
+  EXPECT_EQ(dense.id, 4u);
+  EXPECT_EQ(dense.T_w_c.translation(), Eigen::Vector3d(0.0, 0.0, 0.5));
+  EXPECT_EQ(dense.camera.width, 16);
+  EXPECT_EQ(dense.camera.cx, 7.5);
+  EXPECT_EQ(dense.step, 4);
+  ASSERT_EQ(dense.depth_mm.size(), cv::Size(4, 2));
+  EXPECT_EQ(dense.depth_mm.at<std::uint16_t>(1, 1), 1005);
+  EXPECT_EQ(dense.kind.at<std::uint8_t>(1, 1), mapping::KeyframeSamples::kMover);
+  EXPECT_EQ(dense.colour.size(), cv::Size(4, 2));
 }
 
 TEST_F(SessionFileErrors, ValidChecksumButInconsistentContent) {
@@ -648,6 +749,21 @@ TEST_F(SessionFileErrors, ValidChecksumButInconsistentContent) {
   h = Handmade{};
   h.trailing = "abc";
   expect_inconsistent(h, {"3 unexpected bytes"});
+  h = Handmade{};
+  h.dense_step = 3;  // 16 x 8 at step 3 is 5 x 2 samples, not 4 x 2
+  expect_inconsistent(h, {"dense map keyframe 4", "do not fit"});
+  h = Handmade{};
+  h.dense_kind = 7;
+  expect_inconsistent(h, {"dense map keyframe 4", "kind 7"});
+  h = Handmade{};
+  h.dense_colour = 2;
+  expect_inconsistent(h, {"dense map keyframe 4", "colour flag"});
+  h = Handmade{};
+  h.dense = 2;  // keyframe 4 twice
+  expect_inconsistent(h, {"increasing id order"});
+  h = Handmade{};
+  h.dense_announced = std::uint64_t{1} << 58;
+  expect_inconsistent(h, {"dense map keyframe count", "does not fit"});
 }
 
 }  // namespace
