@@ -147,6 +147,9 @@ nlohmann::json occupancy_summary(const OccupancyStats& stats, const OccupancyGri
           {"unknown", grid.count(OccupancyGrid::kUnknown)}}}}},
       {"voxels", {{"occupied", stats.occupied_voxels}, {"free", stats.free_voxels}}},
       {"keyframes", stats.keyframes},
+      // Keyframes and views integrated (a loaded session's, and in localisation the views that
+      // are not stored): at least `keyframes`.
+      {"integrated", stats.integration_ms.count},
       {"time_per_keyframe_ms",
        {{"median", stats.integration_ms.median},
         {"p95", stats.integration_ms.p95},

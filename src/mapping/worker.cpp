@@ -3,6 +3,7 @@
 #include <utility>
 
 #include "mcslam/core/thread_failure.hpp"
+#include "mcslam/core/thread_priority.hpp"
 #include "mcslam/core/worker.hpp"
 #include "mcslam/mapping/floor.hpp"
 
@@ -11,7 +12,12 @@ namespace mcslam::mapping {
 MappingWorker::MappingWorker(const OccupancyOptions& options, const std::string& thread_name)
     : map_(options),
       failure_(std::make_unique<ThreadFailure>("mapping (" + thread_name + ")")),
-      worker_(std::make_unique<Worker>(thread_name)) {}
+      worker_(std::make_unique<Worker>(thread_name)) {
+  if (options.niceness > 0) {
+    const int niceness = options.niceness;
+    worker_->post([niceness] { lower_current_thread_priority(niceness); });  // best effort
+  }
+}
 
 MappingWorker::~MappingWorker() { worker_.reset(); }
 
@@ -52,6 +58,20 @@ void MappingWorker::enqueue_shared(KeyframeDepth keyframe) {
   if (!worker_ || failure_->failed()) return;  // finished or failed: dropped
   auto shared = std::make_shared<KeyframeDepth>(std::move(keyframe));
   run([shared](OccupancyMap& map) { map.insert(*shared); });
+}
+
+void MappingWorker::restore(std::vector<KeyframeSamples> keyframes) {
+  if (!worker_ || failure_->failed()) return;  // finished or failed: dropped
+  auto shared = std::make_shared<std::vector<KeyframeSamples>>(std::move(keyframes));
+  run([shared](OccupancyMap& map) {
+    for (KeyframeSamples& kf : *shared) map.insert(std::move(kf));
+  });
+}
+
+void MappingWorker::enqueue_transient(KeyframeDepth view) {
+  if (!worker_ || failure_->failed()) return;  // finished or failed: dropped
+  auto shared = std::make_shared<KeyframeDepth>(std::move(view));
+  run([shared](OccupancyMap& map) { map.integrate_transient(*shared); });
 }
 
 void MappingWorker::correct(std::unordered_map<KeyframeId, SE3> T_w_c, bool listed_only) {

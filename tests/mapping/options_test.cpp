@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <functional>
 
 #include "mcslam/core/error.hpp"
@@ -58,6 +59,12 @@ TEST(OccupancyOptions, RangeBandAndProbabilityErrors) {
   expect_error([](OccupancyOptions& o) { o.prob_hit = 0.4; }, "mapping.prob_hit");
   expect_error([](OccupancyOptions& o) { o.prob_miss = 0.6; }, "mapping.prob_miss");
   expect_error([](OccupancyOptions& o) { o.clamp_max = 0.4; }, "mapping.clamp_max");
+  expect_error([](OccupancyOptions& o) { o.niceness = -1; }, "mapping.niceness");
+  expect_error([](OccupancyOptions& o) { o.niceness = 20; }, "mapping.niceness");
+  expect_error([](OccupancyOptions& o) { o.localize_view_period = -0.5; },
+               "mapping.localize_view_period");
+  expect_error([](OccupancyOptions& o) { o.localize_view_period = std::nan(""); },
+               "mapping.localize_view_period");
   expect_error([](OccupancyOptions& o) { o.clamp_min = 0.6; }, "mapping.clamp_min");
   expect_error([](OccupancyOptions& o) { o.pixel_step = -1; }, "mapping.pixel_step");
   expect_error([](OccupancyOptions& o) { o.mask_dilation_px = -2; }, "mapping.mask_dilation_px");

@@ -33,6 +33,15 @@ namespace mcslam::mapping {
 /// The same numbers as map::KeyFrameId.
 using KeyframeId = std::uint64_t;
 
+/// An object of a keyframe by its id (an object track's, the same in every keyframe): its box
+/// (undistorted pixels) and the depth band of its pixels (metres; depth_far <= 0: the whole box).
+struct ObjectRegion {
+  int id = -1;
+  cv::Rect2f box;
+  float depth_near = -1.0f;
+  float depth_far = -1.0f;
+};
+
 /// What the mapping stage receives per keyframe.
 struct KeyframeDepth {
   KeyframeId id = 0;
@@ -54,6 +63,13 @@ struct KeyframeDepth {
   cv::Mat mover_mask;
   /// CV_8UC3 (BGR) of the same size, for the voxels' colours; empty: none.
   cv::Mat colour;
+  /// Objects this keyframe saw standing still (a detector's static boxes), and the ids of its
+  /// moving objects (those of dynamic_mask and mover_mask). When an object seen still before
+  /// moves, the samples where earlier keyframes saw it become a mover's: its first place is
+  /// forgotten as soon as a keyframe sees through it (a chair pushed away from where it stood),
+  /// instead of after the 9 keyframes a static voxel at clamp_max needs. Not kept in sessions.
+  std::vector<ObjectRegion> still_objects;
+  std::vector<int> moving_objects;
 };
 
 /// A keyframe as the map keeps it: its depth sampled in blocks of step x step pixels. Sample
@@ -177,6 +193,10 @@ class OccupancyMap {
   void insert(const KeyframeDepth& keyframe);
   /// Integrates keyframe samples (as kept by keyframes(), e.g. read from a saved session).
   void insert(KeyframeSamples samples);
+  /// Samples and integrates a view as insert() does, without keeping it: a later rebuild
+  /// (correct(), rebuild(), a keyframe given again) forgets it. For localisation, where the
+  /// poses never change and the memory must stay bounded. The id is not used.
+  void integrate_transient(const KeyframeDepth& view);
   /// Sets the listed keyframes' poses (T_w_c; ids not stored are ignored). Stored keyframes not
   /// listed (unless listed_only) move with the closest earlier listed keyframe (by id), keeping
   /// their pose relative to it, and stay when no listed keyframe is earlier: so a keyframe the

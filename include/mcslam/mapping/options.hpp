@@ -64,6 +64,11 @@ struct OccupancyOptions {
   /// outline of a person mixes its depth with the background's and a mask is seldom exact
   /// there. Grown pixels only free their ray; 0 keeps the masks as given.
   int mask_dilation_px = 3;
+  /// Use the keyframes' dynamic and mover masks (people only free space, a pushed chair is
+  /// forgotten where it was). false inserts every pixel as a static surface, as a map without
+  /// object knowledge would: the ablation that measures what the masks buy (scripts/
+  /// bench_mapping.sh prints both). The tracker still excludes the people either way.
+  bool use_masks = true;
   /// Keep each sample's colour (3 bytes a sample) for the voxels' colours.
   bool store_colour = true;
   /// The 2D grid's height band above the floor (metres): a cell is occupied when an occupied
@@ -71,6 +76,19 @@ struct OccupancyOptions {
   /// its noise; 1.8 m is above a mobile robot and below most ceilings and lamps.
   double band_min = 0.1;
   double band_max = 1.8;
+  /// Nice value added to the mapping thread (Linux; best effort). The dense map has no
+  /// deadline: it is read at most once a second (viewer, ROS) and at the end, and keyframes
+  /// wait in its queue meanwhile, while the frame's threads (extraction, tracking) set the
+  /// frame rate and the local mapper (system.background_niceness, 5) makes the keyframes the
+  /// tracker uses at the next frame. So it yields to both on a machine with fewer cores than
+  /// busy threads. What is integrated, and in which order, does not depend on it. 0: the
+  /// frame's priority; at most 19.
+  int niceness = 10;
+  /// In localisation only (`--localize`, no keyframes are made), a tracked view is integrated
+  /// into the dense map (not stored) at most this often (seconds), so that it still forgets a
+  /// chair that moved and sees new obstacles. 0.5 s gives the mapping thread the load it has
+  /// when mapping: 2-5 keyframes a second were inserted on freiburg1_rpy and Bonn crowd part1.
+  double localize_view_period = 0.5;
   /// A pose change (translation in metres, or rotation angle times max_range) below this
   /// fraction of a voxel does not rebuild the map on correct().
   double rebuild_tolerance = 0.25;

@@ -50,6 +50,11 @@ class MappingWorker {
   /// Queues a keyframe without copying its images: they are shared, and the caller must not
   /// write them afterwards (a frame's images are immutable once built).
   void enqueue_shared(KeyframeDepth keyframe);
+  /// Queues stored keyframe samples (a saved session's dense map) to be integrated in order.
+  void restore(std::vector<KeyframeSamples> keyframes);
+  /// Queues a view to be integrated without being stored (OccupancyMap::integrate_transient);
+  /// its images are shared, as with enqueue_shared.
+  void enqueue_transient(KeyframeDepth view);
   /// Queues new poses (T_w_c) of stored keyframes, applied after the keyframes queued before:
   /// OccupancyMap::correct (the map rebuilds when one moved). The rebuild runs on a copy of the
   /// map, off the lock (a rebuild takes ~20-40 ms per stored keyframe): readers keep the map
