@@ -12,8 +12,24 @@ std::vector<DynamicRegion> object_regions(const std::vector<ObjectReport>& objec
                                           ObjectState state) {
   std::vector<DynamicRegion> out;
   for (const ObjectReport& o : objects)
-    if (o.state == state) out.push_back({o.detection.box, o.depth_near, o.depth_far});
+    if (o.state == state) out.push_back({o.detection.box, o.depth_near, o.depth_far, o.track_id});
   return out;
+}
+
+void attach_objects(mapping::KeyframeDepth& keyframe, const std::vector<DynamicRegion>& still,
+                    const std::vector<DynamicRegion>& dynamic,
+                    const std::vector<DynamicRegion>& movers, double depth_margin) {
+  const auto margin = static_cast<float>(depth_margin);
+  for (const DynamicRegion& r : still) {
+    if (r.track_id < 0) continue;
+    const bool banded = r.depth_far > 0.0f;
+    keyframe.still_objects.push_back({r.track_id, r.box,
+                                      banded ? std::max(0.0f, r.depth_near - margin) : -1.0f,
+                                      banded ? r.depth_far + margin : -1.0f});
+  }
+  for (const auto* regions : {&dynamic, &movers})
+    for (const DynamicRegion& r : *regions)
+      if (r.track_id >= 0) keyframe.moving_objects.push_back(r.track_id);
 }
 
 cv::Mat region_mask(const cv::Mat& depth, const std::vector<DynamicRegion>& regions,

@@ -24,6 +24,7 @@ struct DynamicRegion {
   cv::Rect2f box;
   float depth_near = -1.0f;
   float depth_far = -1.0f;
+  int track_id = -1;  ///< the object's track (ObjectReport::track_id), -1 without one
 };
 
 /// The regions of a frame's objects in `state`: ObjectState::kDynamic (people, movers without a
@@ -31,6 +32,13 @@ struct DynamicRegion {
 /// where it was as soon as a keyframe sees through its old place).
 std::vector<DynamicRegion> object_regions(const std::vector<ObjectReport>& objects,
                                           ObjectState state);
+
+/// The keyframe's objects for the dense map (mapping::KeyframeDepth::still_objects and
+/// moving_objects): the still ones with their depth band widened by depth_margin metres, the
+/// ids of the moving ones (people and other movers, constrained movers).
+void attach_objects(mapping::KeyframeDepth& keyframe, const std::vector<DynamicRegion>& still,
+                    const std::vector<DynamicRegion>& dynamic,
+                    const std::vector<DynamicRegion>& movers, double depth_margin);
 
 /// CV_8UC1 of depth's size, 255 on the pixels of the regions whose depth lies within their band
 /// widened by `depth_margin` metres (or has no depth), 0 elsewhere; empty without regions.

@@ -120,8 +120,13 @@ class System {
   /// `initial_map`, when given, is a map made earlier (a loaded session, built with the same
   /// camera, ORB settings and vocabulary: the caller checks): tracking starts by relocalising
   /// into it, then mapping goes on in it (or, with options.localize, it is only read).
+  /// `initial_dense`: the session's dense map (map::Session::dense), rebuilt on the mapping
+  /// thread and extended: with new keyframes, or with options.localize by a tracked view every
+  /// occupancy.localize_view_period seconds, integrated but not stored (the sparse map does not
+  /// move in localisation, so nothing is rebuilt; the memory stays the octree's).
   System(const PinholeCamera& camera, const SystemOptions& options,
-         std::unique_ptr<map::Map> initial_map = nullptr);
+         std::unique_ptr<map::Map> initial_map = nullptr,
+         std::vector<mapping::KeyframeSamples> initial_dense = {});
   ~System();
   System(const System&) = delete;
   System& operator=(const System&) = delete;
@@ -201,7 +206,8 @@ class System {
   LoopStatistics loop_statistics() const;
   /// Solver failures so far (see SolverStatistics).
   SolverStatistics solver_statistics() const;
-  /// Writes the map as a session file (map/session.hpp); call after finish(). Throws InputError.
+  /// Writes the map as a session file (map/session.hpp), with the dense map's stored keyframes
+  /// (after what is queued for it is integrated); call after finish(). Throws InputError.
   void save_session(const std::string& path) const;
   /// The vocabulary in use (null without one).
   const place::Vocabulary* vocabulary() const { return vocabulary_.get(); }
@@ -273,6 +279,10 @@ class System {
   void stop_threads();
   /// Feeds the dense map from the mapper's keyframes and corrections.
   void connect_occupancy();
+  /// In localisation only: the tracked frame's depth to the dense map as a view that is
+  /// integrated, not stored, at most every occupancy.localize_view_period seconds.
+  void add_localize_view(const cv::Mat& depth, const FrameResult& result);
+  std::optional<double> last_localize_view_;
   /// Each moving object's world box and velocity (ObjectReport::world_box, velocity).
   void place_moving_objects(const cv::Mat& depth, const SE3& T_w_c, FrameResult& result);
   /// Box centres (time, centre) of the moving objects' tracks over the last half second.

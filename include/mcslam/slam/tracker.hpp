@@ -54,6 +54,8 @@ struct KeyFrameRequest {
   cv::Mat depth;
   std::vector<DynamicRegion> dynamic_regions;
   std::vector<DynamicRegion> mover_regions;
+  /// The objects seen standing still (their first place is forgotten when they move).
+  std::vector<DynamicRegion> still_regions;
   /// Per point / line segment of frame: 1 on a dynamic or constrained moving object (no
   /// landmark may be created or fused there). Empty when the frame had no such object.
   std::vector<std::uint8_t> excluded_points;
