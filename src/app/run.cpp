@@ -16,6 +16,7 @@
 #include <opencv2/imgproc.hpp>
 #include <sstream>
 
+#include "map_quality.hpp"
 #include "mcslam/app/frame_feed.hpp"
 #include "mcslam/core/error.hpp"
 #include "mcslam/core/thread_failure.hpp"
@@ -162,8 +163,7 @@ void apply_feature_list(const std::string& list, bool& points, bool& lines, bool
 namespace {
 
 /// A session file whose map can continue in this run: same camera, ORB pyramid and vocabulary.
-std::unique_ptr<map::Map> load_compatible_session(const std::string& path,
-                                                  const slam::RunConfig& config) {
+map::Session load_compatible_session(const std::string& path, const slam::RunConfig& config) {
   map::Session session = map::load_session(path);
   const PinholeCamera& a = session.info.camera;
   const PinholeCamera& b = config.camera;
@@ -192,7 +192,7 @@ std::unique_ptr<map::Map> load_compatible_session(const std::string& path,
     throw InputError(
         file_error(path, std::string("the map was made with another vocabulary (id ") + ids + ")"));
   }
-  return std::move(session.map);
+  return session;
 }
 
 /// Loops for summary.json: counts, every verified candidate with its figures, timings.
@@ -491,17 +491,35 @@ Streamed stream_frames(const RunRequest& request, FrameInput& input, slam::Syste
   return out;
 }
 
+/// On a sequence of `mcslam synth` (its objects.json beside the images), the dense map scored
+/// against the scene's exact geometry: occupancy["quality"] (or "quality_error").
+void score_synthetic_map(nlohmann::json& occupancy, const std::string& source_path,
+                         const Trajectory& trajectory, const SE3& T_gt_est,
+                         const mapping::MappingWorker& worker) {
+  try {
+    const auto scene =
+        read_synthetic_scene(std::filesystem::path(source_path) / "objects.json",
+                             trajectory.front().timestamp, trajectory.back().timestamp);
+    if (!scene) return;
+    worker.with_map([&](const mapping::OccupancyMap& map) {
+      occupancy["quality"] = evaluate_synthetic_map(map, *scene, T_gt_est.inverse());
+    });
+  } catch (const InputError& e) {
+    occupancy["quality_error"] = e.what();
+  }
+}
+
 nlohmann::json run_frames(const RunRequest& request, const std::string& source_path,
                           const io::FrameSource* source, const std::vector<std::string>& warnings,
                           const StreamPlan& plan, std::size_t total, const slam::RunConfig& config,
                           std::unique_ptr<slam::DetectionSource> detection_source,
-                          std::unique_ptr<map::Map> initial_map,
-                          const std::optional<Trajectory>& groundtruth,
+                          map::Session initial, const std::optional<Trajectory>& groundtruth,
                           const std::optional<slam::ReadoutCalibration>& calibration,
                           RunStatus& status, Viewer* viewer, RunControl* control) {
   namespace fs = std::filesystem;
   const fs::path out(request.output_dir);
-  slam::System system(config.camera, config.options, std::move(initial_map));
+  slam::System system(config.camera, config.options, std::move(initial.map),
+                      std::move(initial.dense));
   std::string detection_description;
   if (detection_source) {
     detection_description = detection_source->describe();
@@ -742,6 +760,9 @@ nlohmann::json run_frames(const RunRequest& request, const std::string& source_p
   if (groundtruth && !trajectory.empty()) {
     try {
       const eval::EvalReport report = eval::evaluate(*groundtruth, trajectory);
+      if (summary.contains("occupancy") && plan.passes == 1)
+        score_synthetic_map(summary["occupancy"], source_path, trajectory, report.ate.T_gt_est,
+                            *system.occupancy());
       summary["eval"] = eval::to_json(report);
       summary["ate_rmse_m"] = report.ate.translation.rmse;
       if (smoothing.applied)
@@ -871,8 +892,8 @@ nlohmann::json run_sequence(const RunRequest& request) {
   if (request.no_dynamics) config.options.tracker.dynamics.enabled = false;
   if (request.no_constraints) config.options.tracker.dynamics.constraints = false;
   if (request.no_occupancy) config.options.occupancy_enabled = false;
-  std::unique_ptr<map::Map> initial_map;
-  if (request.load_session) initial_map = load_compatible_session(*request.load_session, config);
+  map::Session initial;  // the loaded session's map and dense map, or none
+  if (request.load_session) initial = load_compatible_session(*request.load_session, config);
   std::unique_ptr<slam::DetectionSource> detection_source =
       make_detection_source(request, config.camera, config.options);
   if (!detection_source)
@@ -888,7 +909,7 @@ nlohmann::json run_sequence(const RunRequest& request) {
     // readout, and the run starts from that estimate (slam/readout_calibration.hpp). Not in real
     // time (a live camera is not replayed) nor in a loaded map (made with a fixed readout).
     std::optional<slam::ReadoutCalibration> calibration;
-    if (source && config.camera.readout_auto && !request.realtime && !initial_map &&
+    if (source && config.camera.readout_auto && !request.realtime && !initial.map &&
         config.options.readout.calibration_seconds > 0.0) {
       const auto frame = [&](std::size_t k) {
         const io::FrameEntry& entry = plan.frames[k];
@@ -926,7 +947,7 @@ nlohmann::json run_sequence(const RunRequest& request) {
       std::cerr << "mcslam: viewer at " << viewer->url() << "\n";
     }
     return run_frames(request, source_path, source.get(), warnings, plan, total, config,
-                      std::move(detection_source), std::move(initial_map), groundtruth, calibration,
+                      std::move(detection_source), std::move(initial), groundtruth, calibration,
                       status, viewer.get(), control ? &*control : nullptr);
   } catch (const InputError& e) {
     status.failed(e.what());

@@ -127,6 +127,7 @@ function expectationsOf(seq) {
     timing: results.some((r) => Array.isArray(r.stages_ms) && r.stages_ms.some((s) => Array.isArray(s) && typeof s[1] === 'number')),
     map: Boolean(seq.map && ((seq.map.points || []).length >= 3 || (seq.map.keyframes || []).length || (seq.map.lines || []).length >= 6)),
     overlays: (seq.overlays || []).filter((o) => o && o.jpeg_base64).length,
+    grid: Boolean(seq.grid && seq.grid.png_base64),
   };
 }
 
@@ -214,6 +215,14 @@ try {
       } else {
         const absent = await page.locator(`${sel} canvas[data-view="map3d"]`).count();
         check(absent === 0, `${name} has no map in the data and no 3D view`);
+      }
+
+      if (expect.grid) {
+        const grid = await page.$$eval(`${sel} img[data-grid]`, (els) => els.map((img) => ({ ok: img.complete && img.naturalWidth > 0, w: img.naturalWidth, h: img.naturalHeight })));
+        check(grid.length === 1 && grid[0].ok, `${name} occupancy grid decoded (${grid.map((g) => `${g.w}x${g.h}`).join(', ') || 'missing'})`);
+      } else {
+        const absent = await page.locator(`${sel} img[data-grid]`).count();
+        check(absent === 0, `${name} has no grid in the data and shows none`);
       }
 
       if (expect.overlays) {

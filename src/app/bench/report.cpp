@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <map>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -205,6 +206,23 @@ nlohmann::json overlays_json(const std::string& run_dir, int count, int width) {
                    {"jpeg_base64", base64(jpeg.data(), jpeg.size())}});
   }
   return out;
+}
+
+nlohmann::json grid_json(const std::string& run_dir) {
+  const fs::path png = fs::path(run_dir) / "grid.png";
+  std::ifstream in(png, std::ios::binary);
+  if (!in) return nullptr;
+  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  if (bytes.empty()) return nullptr;
+  nlohmann::json j = {
+      {"png_base64", base64(reinterpret_cast<const unsigned char*>(bytes.data()), bytes.size())}};
+  try {
+    const nlohmann::json summary = load_json(fs::path(run_dir) / "summary.json");
+    if (summary.contains("occupancy")) j["occupancy"] = summary["occupancy"];
+  } catch (const std::exception&) {
+    // the picture alone
+  }
+  return j;
 }
 
 std::string base64(const unsigned char* data, std::size_t size) {

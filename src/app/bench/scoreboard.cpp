@@ -242,6 +242,18 @@ nlohmann::json Scoreboard::sequence_report(std::size_t si, const SequenceResult&
     js["overlays"] = overlays_json(rep->dir, settings_.overlays);
     break;
   }
+  // The occupancy grid of the last configuration that made one (the full system's, listed last).
+  js["grid"] = nullptr;
+  for (std::size_t ci = configs.size(); ci-- > 0;) {
+    const auto& rep = state.representatives[ci];
+    if (!rep) continue;
+    nlohmann::json grid = grid_json(rep->dir);
+    if (grid.is_null()) continue;
+    grid["config"] = configs[ci].name;
+    grid["run"] = rep->folder;
+    js["grid"] = std::move(grid);
+    break;
+  }
   return js;
 }
 
@@ -268,7 +280,8 @@ nlohmann::json Scoreboard::report_data(const BenchMeta& meta, const std::string&
     nlohmann::json& js = data["sequences"][si];
     for (std::size_t ci = 0; ci < settings_.configs.size(); ++ci)
       js["results"][ci]["trajectory"] = part["trajectory"][ci];
-    for (const char* key : {"groundtruth", "published", "map", "overlays"}) js[key] = part[key];
+    for (const char* key : {"groundtruth", "published", "map", "overlays", "grid"})
+      js[key] = part[key];
   }
   return data;
 }

@@ -9,6 +9,7 @@ import {
 } from './tables.js';
 import { trajectoryPart, atePart, timingPart } from './charts.js';
 import { galleryPart } from './gallery.js';
+import { gridPart } from './grid.js';
 import { mapPart } from './map3d.js';
 
 const FORMAT = 'mcslam-bench-report';
@@ -76,6 +77,7 @@ function sequenceSection(seq, i, ctx, mounts) {
     block('Per-stage timing', safePart(`the timing chart of ${name}`, () => timingPart(seq, i, ctx)), mounts, `the timing chart of ${name}`),
     hasOverlays ? block('Annotated frames', safePart(`the annotated frames of ${name}`, () => galleryPart(seq, i)), mounts, `the annotated frames of ${name}`) : null,
     block('3D map', safePart(`the 3D map of ${name}`, () => mapPart(seq, i)), mounts, `the 3D map of ${name}`),
+    block('Occupancy grid', safePart(`the occupancy grid of ${name}`, () => gridPart(seq, i)), mounts, `the occupancy grid of ${name}`),
   ];
   return h('section', { class: 'sequence', id, dataset: { seq: String(i), sequence: name } },
     h('h2', null, name, seq.dataset ? h('span', { class: 'tag' }, String(seq.dataset)) : null,

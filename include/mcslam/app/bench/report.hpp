@@ -35,6 +35,11 @@ nlohmann::json map_json(const std::string& map_json_path, std::size_t max_points
 /// spread over the run; re-encoded as JPEG `width` pixels wide, base64.
 nlohmann::json overlays_json(const std::string& run_dir, int count, int width = 480);
 
+/// The occupancy grid of a run for the report: its grid.png (base64) and summary.json's
+/// `occupancy` (cells, voxels, time per keyframe, memory, the synthetic scene's quality when
+/// scored). null when the run has no grid.png (mapping off, or a failed run).
+nlohmann::json grid_json(const std::string& run_dir);
+
 /// Standard base64 (RFC 4648) with padding.
 std::string base64(const unsigned char* data, std::size_t size);
 
