@@ -1,6 +1,7 @@
 #include "mcslam/app/viewer.hpp"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cstring>
 #include <fstream>
@@ -12,6 +13,7 @@
 #include "mcslam/core/data_files.hpp"
 #include "mcslam/core/error.hpp"
 #include "mcslam/core/worker.hpp"
+#include "mcslam/mapping/worker.hpp"
 
 namespace mcslam::app {
 namespace {
@@ -26,7 +28,7 @@ double detector_rate_hz(const std::vector<std::pair<double, std::size_t>>& sampl
 }
 
 /// The binary messages: one byte of type, three of padding, then the body.
-enum : std::uint8_t { kFrameMessage = 1, kMapMessage = 2 };
+enum : std::uint8_t { kFrameMessage = 1, kMapMessage = 2, kOccupancyMessage = 3 };
 
 const char* kPage = R"(<!DOCTYPE html>
 <html lang="en">
@@ -84,7 +86,55 @@ std::vector<float> thin(const std::vector<float>& values, std::size_t group, std
   return out;
 }
 
+/// The type byte, padding, the header's length and the header, padded to 4 bytes.
+std::string message_start(std::uint8_t type, const nlohmann::json& header) {
+  const std::string text = header.dump();
+  std::string out;
+  const std::uint8_t start[4] = {type, 0, 0, 0};
+  append_bytes(out, start, 4);
+  const std::uint32_t length = static_cast<std::uint32_t>(text.size());
+  append_bytes(out, &length, 4);
+  out += text;
+  pad4(out);
+  return out;
+}
+
 }  // namespace
+
+std::string occupancy_message(const mapping::OccupancySnapshot& snapshot, std::size_t max_voxels) {
+  const mapping::OccupancyGrid& grid = snapshot.grid;
+  const std::size_t all = snapshot.voxels.size();
+  const std::size_t n = max_voxels == 0 ? all : std::min(all, max_voxels);
+  std::vector<float> centres, sizes;
+  std::vector<std::uint8_t> colours;
+  centres.reserve(3 * n);
+  sizes.reserve(n);
+  colours.reserve(3 * n);
+  for (std::size_t k = 0; k < n; ++k) {
+    const mapping::OccupiedVoxel& v = snapshot.voxels[k * all / n];  // evenly, when thinned
+    centres.insert(centres.end(),
+                   {static_cast<float>(v.centre.x()), static_cast<float>(v.centre.y()),
+                    static_cast<float>(v.centre.z())});
+    sizes.push_back(static_cast<float>(v.size));
+    colours.insert(colours.end(), v.rgb.begin(), v.rgb.end());
+  }
+  const nlohmann::json header = {{"version", snapshot.version},
+                                 {"width", grid.width},
+                                 {"height", grid.height},
+                                 {"resolution", grid.resolution},
+                                 {"voxels", n},
+                                 {"voxels_in_map", all},
+                                 {"floor_estimated", grid.floor_estimated}};
+  std::string out = message_start(kOccupancyMessage, header);
+  out.reserve(out.size() + 64 + grid.cells.size() + 3 + 19 * n);
+  const Eigen::Matrix4f T = grid.T_world_grid.cast<float>();  // column-major, as three.js takes it
+  append_bytes(out, T.data(), 16 * sizeof(float));
+  append_vector(out, grid.cells);
+  append_vector(out, centres);
+  append_vector(out, sizes);
+  append_vector(out, colours);
+  return out;
+}
 
 std::optional<std::string> ViewerOptions::check() const {
   if (auto e = server.check()) return e;
@@ -94,6 +144,7 @@ std::optional<std::string> ViewerOptions::check() const {
   if (jpeg_quality < 10 || jpeg_quality > 100) return "jpeg_quality: must be 10..100";
   if (max_map_points < 1000) return "max_map_points: must be at least 1000";
   if (max_trajectory_points < 100) return "max_trajectory_points: must be at least 100";
+  if (max_voxels < 1000) return "max_voxels: must be at least 1000";
   return std::nullopt;
 }
 
@@ -189,9 +240,15 @@ void Viewer::on_frame(const FrameEvent& e) {
   box_age_ = r.detections_used ? r.detections_age : -1;
   objects_ = static_cast<int>(r.objects.size());
   dynamic_objects_ = constrained_objects_ = 0;
+  object_boxes_.clear();
   for (const auto& o : r.objects) {
-    dynamic_objects_ += o.state == slam::ObjectState::kDynamic ? 1 : 0;
-    constrained_objects_ += o.state == slam::ObjectState::kConstrained ? 1 : 0;
+    const bool dynamic = o.state == slam::ObjectState::kDynamic;
+    const bool constrained = o.state == slam::ObjectState::kConstrained;
+    dynamic_objects_ += dynamic ? 1 : 0;
+    constrained_objects_ += constrained ? 1 : 0;
+    if ((dynamic || constrained) && o.world_box)
+      object_boxes_.push_back({o.world_box->first, o.world_box->second, constrained,
+                               o.detection.class_name, o.track_id});
   }
   keyframes_ += r.keyframe ? 1 : 0;
   pose_ = r.T_w_c;
@@ -215,6 +272,7 @@ void Viewer::on_stream_end(slam::System& system) {
   {
     std::lock_guard<std::mutex> lock(system_mutex_);
     map = map_message(system);
+    send_occupancy(system);
   }
   detach();
   server_->publish(ViewerChannel::kMap, std::move(map), true);
@@ -278,7 +336,16 @@ std::string Viewer::stats_json() {
                       {"finished", finished_},
                       {"frames_sent", frames_sent_.load()},
                       {"maps_sent", maps_sent_.load()},
+                      {"occupancy_sent", occupancy_sent_.load()},
                       {"clients", server_->stats().clients}};
+  nlohmann::json boxes = nlohmann::json::array();
+  for (const ObjectBox& b : object_boxes_)
+    boxes.push_back({{"min", std::array<double, 3>{b.min.x(), b.min.y(), b.min.z()}},
+                     {"max", std::array<double, 3>{b.max.x(), b.max.y(), b.max.z()}},
+                     {"state", b.constrained ? "constrained" : "dynamic"},
+                     {"class", b.class_name},
+                     {"track", b.track_id}});
+  j["object_boxes"] = std::move(boxes);
   if (pose_) {
     const Eigen::Matrix4d T = pose_->matrix();
     std::vector<double> m(T.data(), T.data() + 16);  // column-major, as three.js takes it
@@ -349,16 +416,9 @@ std::string Viewer::map_message(slam::System& system) {
                                  {"trajectory", trajectory.size() / 3},
                                  {"planes", planes},
                                  {"loops_closed", loops}};
-  const std::string text = header.dump();
-  std::string out;
-  out.reserve(16 + text.size() + 4 * (points.size() + lines.size() + trajectory.size()) +
+  std::string out = message_start(kMapMessage, header);
+  out.reserve(out.size() + 16 + 4 * (points.size() + lines.size() + trajectory.size()) +
               colors.size());
-  const std::uint8_t type[4] = {kMapMessage, 0, 0, 0};
-  append_bytes(out, type, 4);
-  const std::uint32_t length = static_cast<std::uint32_t>(text.size());
-  append_bytes(out, &length, 4);
-  out += text;
-  pad4(out);
   append_vector(out, points);
   append_vector(out, colors);
   append_vector(out, lines);
@@ -383,6 +443,18 @@ void Viewer::send_frame(const PendingFrame& frame, const slam::System& system) {
   append_bytes(out, &id, 4);
   append_bytes(out, jpeg.data(), jpeg.size());
   server_->publish(ViewerChannel::kFrame, std::move(out), true);
+}
+
+void Viewer::send_occupancy(const slam::System& system) {
+  const mapping::MappingWorker* worker = system.occupancy();
+  if (!worker) return;
+  // Cheap when the map has not changed since the last snapshot; built here otherwise.
+  const std::shared_ptr<const mapping::OccupancySnapshot> snapshot = worker->snapshot();
+  if (snapshot->version == occupancy_version_) return;
+  occupancy_version_ = snapshot->version;
+  server_->publish(ViewerChannel::kOccupancy, occupancy_message(*snapshot, options_.max_voxels),
+                   true);
+  ++occupancy_sent_;
 }
 
 void Viewer::loop_guarded() {
@@ -432,6 +504,7 @@ void Viewer::loop() {
       if (system_ && map_due) {
         server_->publish(ViewerChannel::kMap, map_message(*system_), true);
         ++maps_sent_;
+        send_occupancy(*system_);
         last_map = now;
       }
     }
@@ -445,6 +518,7 @@ nlohmann::json Viewer::summary() const {
   return {{"url", url()},
           {"frames_sent", frames_sent_.load()},
           {"maps_sent", maps_sent_.load()},
+          {"occupancy_sent", occupancy_sent_.load()},
           {"connections", s.connections},
           {"clients_max", s.clients_max},
           {"messages_sent", s.messages_sent},

@@ -2,9 +2,11 @@
 # The live viewer in a real browser: `mcslam run --viewer` on a rendered dynamic room (played at
 # its frame rate, --realtime, so that the run lasts while the page is checked), then headless
 # Chromium opens the page (web/viewer/check-viewer.mjs): frames arrive, the map grows, the
-# trajectory is drawn, pause and resume, localisation only and back, no console errors. The run
-# (60 s of frames, longer than the check takes) is then stopped with SIGINT and must write its
-# outputs, its summary.json recording the pause and the two switches.
+# trajectory is drawn, the occupancy map's grid and voxels and the people's boxes are drawn and
+# their switches hide and show them, pause and resume, localisation only and back, no console
+# errors. The run (60 s of frames, longer than the check takes) is then stopped with SIGINT and
+# must write its outputs, its summary.json recording the pause, the two switches and the
+# occupancy snapshots sent.
 # Usage: viewer_browser.sh MCSLAM_EXE OUT_DIR [SCREENSHOT_DIR]
 # Exit 77 (skipped) without Node.js, Chromium or the viewer's scripts, unless
 # MCSLAM_STRICT_TESTS=1 (CI), where a skip is a failure.
@@ -62,5 +64,6 @@ c = s["controls"]
 assert c["pauses"] >= 1 and c["paused_s"] > 1.0, c
 assert [x["localize"] for x in c["localize_switches"]] == [True, False], c
 assert s["viewer"]["connections"] >= 1 and s["viewer"]["frames_sent"] > 0, s["viewer"]
+assert s["viewer"]["occupancy_sent"] >= 1, s["viewer"]
 print("summary.json: controls", c, "viewer", s["viewer"])
 PY

@@ -1,7 +1,8 @@
 // The live viewer's server against bad requests and bad clients: unknown paths, path traversal,
 // other methods, malformed HTTP, malformed and oversized WebSocket frames, a client that never
 // reads, several clients at once, a port in use, a bad bind address. Raw sockets, so that the
-// bytes sent are exactly the bad ones.
+// bytes sent are exactly the bad ones. And the viewer's occupancy message decoded back to the
+// snapshot it was made of.
 #include "mcslam/app/viewer_server.hpp"
 
 #include <arpa/inet.h>
@@ -13,12 +14,16 @@
 
 #include <atomic>
 #include <chrono>
+#include <cstring>
 #include <mutex>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <thread>
 #include <vector>
 
+#include "mcslam/app/viewer.hpp"
 #include "mcslam/core/error.hpp"
+#include "mcslam/mapping/worker.hpp"
 
 namespace mcslam::app {
 namespace {
@@ -409,6 +414,127 @@ TEST(ViewerServer, APortInUseOrABadAddressIsAnInputError) {
   bad.bind = "127.0.0.1";
   bad.port = 70000;
   EXPECT_THROW(ViewerServer(bad, {}, nullptr), InputError);
+}
+
+/// A snapshot with an odd number of cells (the voxels after them start unaligned without
+/// padding), a grid frame turned and moved, and `voxels` voxels of distinct centres and colours.
+mapping::OccupancySnapshot test_snapshot(std::size_t voxels) {
+  mapping::OccupancySnapshot s;
+  s.version = 7;
+  s.grid.width = 5;
+  s.grid.height = 3;
+  s.grid.resolution = 0.05;
+  s.grid.T_world_grid.topLeftCorner<3, 3>() =
+      Eigen::AngleAxisd(0.3, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
+  s.grid.T_world_grid.topRightCorner<3, 1>() = Eigen::Vector3d(-1.25, 0.5, 2.0);
+  for (int i = 0; i < 15; ++i)
+    s.grid.cells.push_back(i % 3 == 0   ? mapping::OccupancyGrid::kOccupied
+                           : i % 3 == 1 ? mapping::OccupancyGrid::kFree
+                                        : mapping::OccupancyGrid::kUnknown);
+  for (std::size_t i = 0; i < voxels; ++i) {
+    mapping::OccupiedVoxel v;
+    v.centre = Eigen::Vector3d(0.05 * static_cast<double>(i), -0.5, 1.0 + 0.001 * i);
+    v.size = i % 2 == 0 ? 0.05 : 0.1;
+    v.rgb = {static_cast<std::uint8_t>(i % 256), static_cast<std::uint8_t>(7 * i % 256), 200};
+    s.voxels.push_back(v);
+  }
+  return s;
+}
+
+/// The occupancy message read as the page reads it; every array must start 4-byte aligned.
+struct DecodedOccupancy {
+  nlohmann::json header;
+  std::vector<float> T, centres, sizes;
+  std::vector<std::int8_t> cells;
+  std::vector<std::uint8_t> rgb;
+  std::size_t end = 0;  ///< the offset after the last array, padded
+};
+
+template <typename T>
+std::vector<T> take(const std::string& bytes, std::size_t& offset, std::size_t count) {
+  offset = (offset + 3) / 4 * 4;
+  EXPECT_LE(offset + count * sizeof(T), bytes.size());
+  std::vector<T> out(count);
+  if (offset + count * sizeof(T) <= bytes.size())
+    std::memcpy(out.data(), bytes.data() + offset, count * sizeof(T));
+  offset += count * sizeof(T);
+  return out;
+}
+
+DecodedOccupancy decode_occupancy(const std::string& bytes) {
+  DecodedOccupancy d;
+  EXPECT_GE(bytes.size(), 8u);
+  EXPECT_EQ(bytes.substr(0, 4), std::string("\x03\0\0\0", 4));
+  std::uint32_t length = 0;
+  std::memcpy(&length, bytes.data() + 4, 4);
+  d.header = nlohmann::json::parse(bytes.substr(8, length));
+  std::size_t offset = 8 + length;
+  const std::size_t cells =
+      d.header["width"].get<std::size_t>() * d.header["height"].get<std::size_t>();
+  const std::size_t n = d.header["voxels"].get<std::size_t>();
+  d.T = take<float>(bytes, offset, 16);
+  d.cells = take<std::int8_t>(bytes, offset, cells);
+  d.centres = take<float>(bytes, offset, 3 * n);
+  d.sizes = take<float>(bytes, offset, n);
+  d.rgb = take<std::uint8_t>(bytes, offset, 3 * n);
+  d.end = (offset + 3) / 4 * 4;
+  return d;
+}
+
+TEST(ViewerOccupancy, TheMessageDecodesToTheSnapshotsGridAndVoxels) {
+  const mapping::OccupancySnapshot s = test_snapshot(10);
+  const std::string bytes = occupancy_message(s, 1000);
+  EXPECT_EQ(bytes.size() % 4, 0u);
+  const DecodedOccupancy d = decode_occupancy(bytes);
+  EXPECT_EQ(d.end, bytes.size());  // nothing after the last array but its padding
+  EXPECT_EQ(d.header["version"], 7);
+  EXPECT_EQ(d.header["width"], 5);
+  EXPECT_EQ(d.header["height"], 3);
+  EXPECT_DOUBLE_EQ(d.header["resolution"].get<double>(), 0.05);
+  EXPECT_EQ(d.header["voxels"], 10);
+  EXPECT_EQ(d.header["voxels_in_map"], 10);
+  for (int c = 0; c < 4; ++c)  // column-major
+    for (int r = 0; r < 4; ++r)
+      EXPECT_FLOAT_EQ(d.T[4 * c + r], static_cast<float>(s.grid.T_world_grid(r, c)));
+  EXPECT_EQ(d.cells, s.grid.cells);
+  for (std::size_t i = 0; i < 10; ++i) {
+    for (int a = 0; a < 3; ++a) {
+      EXPECT_FLOAT_EQ(d.centres[3 * i + a], static_cast<float>(s.voxels[i].centre[a]));
+      EXPECT_EQ(d.rgb[3 * i + a], s.voxels[i].rgb[a]);
+    }
+    EXPECT_FLOAT_EQ(d.sizes[i], static_cast<float>(s.voxels[i].size));
+  }
+}
+
+TEST(ViewerOccupancy, MoreVoxelsThanTheLimitAreThinnedEvenly) {
+  const mapping::OccupancySnapshot s = test_snapshot(2500);
+  const std::string bytes = occupancy_message(s, 1000);
+  const DecodedOccupancy d = decode_occupancy(bytes);
+  EXPECT_EQ(d.end, bytes.size());
+  EXPECT_EQ(d.header["voxels"], 1000);
+  EXPECT_EQ(d.header["voxels_in_map"], 2500);
+  ASSERT_EQ(d.sizes.size(), 1000u);
+  // Voxel k of the message is voxel k * 2500 / 1000 of the snapshot: spread over all of it.
+  for (std::size_t k = 0; k < 1000; ++k) {
+    const mapping::OccupiedVoxel& v = s.voxels[k * 5 / 2];
+    EXPECT_FLOAT_EQ(d.centres[3 * k], static_cast<float>(v.centre.x())) << k;
+    EXPECT_FLOAT_EQ(d.sizes[k], static_cast<float>(v.size)) << k;
+    EXPECT_EQ(d.rgb[3 * k + 1], v.rgb[1]) << k;
+  }
+  EXPECT_GT(d.centres[3 * 999], 0.9f * static_cast<float>(s.voxels.back().centre.x()));
+  // An empty map: a grid of no cells and no voxels, still well formed.
+  const std::string empty = occupancy_message(mapping::OccupancySnapshot{}, 1000);
+  const DecodedOccupancy e = decode_occupancy(empty);
+  EXPECT_EQ(e.end, empty.size());
+  EXPECT_TRUE(e.cells.empty() && e.sizes.empty());
+}
+
+TEST(ViewerOccupancy, TheVoxelLimitIsChecked) {
+  ViewerOptions options;
+  EXPECT_FALSE(options.check());
+  options.max_voxels = 999;
+  ASSERT_TRUE(options.check());
+  EXPECT_NE(options.check()->find("max_voxels"), std::string::npos);
 }
 
 }  // namespace

@@ -3,9 +3,11 @@
 //
 //   node web/viewer/check-viewer.mjs URL SCREENSHOT_DIR
 //
-// Frames arrive, the map's point count grows, the trajectory is drawn, pause stops the frame
-// counter and resume restarts it, the localisation switch is reflected, no console errors and
-// nothing fetched from another origin. Saves viewer-live.png and viewer-map.png.
+// Frames arrive, the map's point count grows, the trajectory is drawn, an occupancy snapshot
+// with a grid and voxels arrives and the people's boxes do, the Grid, Voxels and People switches
+// hide and show their layers, pause stops the frame counter and resume restarts it, the
+// localisation switch is reflected, no console errors and nothing fetched from another origin.
+// Saves viewer-live.png and viewer-map.png (all layers on).
 // Exit status: 0 all checks passed, 1 a check failed, 2 wrong usage, 77 skipped (no Chromium at
 // $CHROMIUM or /usr/bin/chromium, or no playwright-core in web/report/node_modules).
 import fs from 'node:fs';
@@ -41,12 +43,84 @@ try {
 
 const passed = [];
 const failed = [];
+const started = Date.now();
 function check(ok, message) {
   (ok ? passed : failed).push(message);
-  console.log(`${ok ? 'ok  ' : 'FAIL'}  ${message}`);
+  console.log(`${ok ? 'ok  ' : 'FAIL'}  ${message}  [${((Date.now() - started) / 1000).toFixed(1)} s]`);
 }
 const sleep = (ms) => new Promise((resolve) => setTimeout(resolve, ms));
 const origin = new URL(url).origin;
+
+// Pixels of the 3D view that are not its background.
+function drawnPixels(page) {
+  return page.evaluate(() => {
+    const canvas = document.querySelector('canvas[data-view=map3d]');
+    const gl = canvas.getContext('webgl2') || canvas.getContext('webgl');
+    const w = gl.drawingBufferWidth, h = gl.drawingBufferHeight;
+    const px = new Uint8Array(w * h * 4);
+    gl.readPixels(0, 0, w, h, gl.RGBA, gl.UNSIGNED_BYTE, px);
+    let n = 0;
+    for (let i = 0; i < px.length; i += 4) {
+      if (Math.abs(px[i] - 0xf3) + Math.abs(px[i + 1] - 0xf5) + Math.abs(px[i + 2] - 0xf8) > 30) n += 1;
+    }
+    return n;
+  });
+}
+
+// Sets a layer switch (a click, as a user would) and waits for the view to be drawn again.
+async function setLayer(page, name, on) {
+  const box = page.locator(`input[data-control=layer-${name}]`);
+  if ((await box.isChecked()) !== on) await box.click();
+  await page.evaluate(() => new Promise((resolve) => requestAnimationFrame(() => requestAnimationFrame(resolve))));
+}
+
+// The occupancy map's grid and voxels and the people's boxes arrive and are drawn; each switch
+// hides its layer (the page's state, and the view loses the grid's and voxels' pixels) and shows
+// it again. The camera is held still meanwhile (Follow camera off), so that the pixels compare.
+async function checkLayers(page, viewer) {
+  await page.waitForFunction(() => {
+    const o = window.mcslamViewer.occupancy;
+    return o && o.occupied > 0 && o.free > 0 && o.voxels > 0;
+  }, null, { timeout: 30_000 }).catch(() => {});
+  let v = await viewer();
+  const o = v.occupancy || {};
+  check(v.occupancyReceived >= 1 && o.width * o.height > 0 && o.occupied > 0 && o.free > 0,
+    `an occupancy snapshot with a grid arrives (${v.occupancyReceived} received, ${o.width} x ${o.height} cells, ${o.occupied} occupied, ${o.free} free)`);
+  check(o.voxels > 0 && o.voxels <= o.voxelsInMap, `with voxels (${o.voxels} of ${o.voxelsInMap})`);
+  await page.waitForFunction(() => window.mcslamViewer.objectBoxesSeen > 0, null, { timeout: 20_000 }).catch(() => {});
+  v = await viewer();
+  check(v.objectBoxesSeen > 0, `the people's boxes arrive (at most ${v.objectBoxesSeen} at once)`);
+  const labels = await page.evaluate(() => ['grid', 'voxels', 'people'].map((n) => {
+    const box = document.querySelector(`input[data-control=layer-${n}]`);
+    return box && box.checked && box.closest('label') ? box.closest('label').textContent.trim() : null;
+  }));
+  check(labels.join() === 'Grid,Voxels,People', `the three layer switches are there and on (${labels.join(', ')})`);
+  check(v.layers && v.layers.grid.drawn && v.layers.voxels.drawn && v.layers.voxels.count === v.occupancy.voxels,
+    `the grid and the voxels are drawn (${JSON.stringify(v.layers)})`);
+
+  await page.locator('input[data-control=follow]').uncheck();
+  await setLayer(page, 'grid', true);
+  const withLayers = await drawnPixels(page);
+  for (const name of ['grid', 'voxels', 'people']) await setLayer(page, name, false);
+  const without = await drawnPixels(page);
+  v = await viewer();
+  const hidden = ['grid', 'voxels', 'people'].every((n) => !v.layers[n].visible && !v.layers[n].drawn);
+  check(hidden, `switched off, no layer is drawn (${JSON.stringify(v.layers)})`);
+  check(withLayers - without > 1000, `the view loses the grid's and voxels' pixels (${withLayers} -> ${without}; a frame took ${Number(v.renderMs).toFixed(1)} ms to draw)`);
+  // A new occupancy snapshot keeps the layer hidden.
+  const received = v.occupancyReceived;
+  await page.waitForFunction((n) => window.mcslamViewer.occupancyReceived > n, received, { timeout: 15_000 }).catch(() => {});
+  v = await viewer();
+  check(v.occupancyReceived > received && !v.layers.grid.drawn && !v.layers.voxels.drawn,
+    `and stays off when the next snapshot arrives (${received} -> ${v.occupancyReceived})`);
+  for (const name of ['grid', 'voxels', 'people']) await setLayer(page, name, true);
+  const again = await drawnPixels(page);
+  v = await viewer();
+  check(v.layers.grid.drawn && v.layers.voxels.drawn && v.layers.people.visible
+    && v.layers.people.drawn === (v.layers.people.count > 0), `switched on, they are drawn again (${JSON.stringify(v.layers)})`);
+  check(again - without > 1000, `the view shows them again (${without} -> ${again})`);
+  await page.locator('input[data-control=follow]').check();
+}
 
 const browser = await chromium.launch({ executablePath: chromiumPath, args: CHROMIUM_ARGS, headless: true });
 try {
@@ -101,6 +175,7 @@ try {
   check(mapPixels && mapPixels.orange > 20, `the trajectory is drawn in the 3D view (${mapPixels && mapPixels.orange} pixels)`);
   check(mapPixels && mapPixels.other > 500, `the 3D view is not blank (${mapPixels && mapPixels.other} pixels)`);
   fs.mkdirSync(screenshotDir, { recursive: true });
+  await checkLayers(page, viewer);
   await page.screenshot({ path: path.join(screenshotDir, 'viewer-live.png') });
 
   // Pause stops the frame counter; resume restarts it.

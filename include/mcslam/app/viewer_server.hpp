@@ -51,8 +51,8 @@ struct ServedFile {
 };
 
 /// The channels of the WebSocket (each keeps only its newest message).
-enum class ViewerChannel { kHello = 0, kStats = 1, kMap = 2, kFrame = 3 };
-inline constexpr std::size_t kViewerChannels = 4;
+enum class ViewerChannel { kHello = 0, kStats = 1, kMap = 2, kFrame = 3, kOccupancy = 4 };
+inline constexpr std::size_t kViewerChannels = 5;
 
 struct ViewerServerStats {
   std::size_t clients = 0;           ///< connected now

@@ -1,6 +1,8 @@
 // The live 3D map: the shared scene parts (web/shared/map-scene.js) rebuilt from each snapshot,
-// the camera's trajectory, the ground truth, and the camera's frustum at its newest pose. Orbit,
-// pan and zoom with the mouse; "follow" moves the view along with the camera.
+// the camera's trajectory, the ground truth, and the camera's frustum at its newest pose; the
+// occupancy map's grid and voxels and the moving objects' boxes (occupancy-layers.js) as layers
+// that can be hidden. Orbit, pan and zoom with the mouse; "follow" moves the view along with the
+// camera.
 import {
   WebGLRenderer, Scene, PerspectiveCamera, Color, BufferGeometry, Float32BufferAttribute,
   Line, LineBasicMaterial, LineSegments, AxesHelper, Vector3, Matrix4, LinearSRGBColorSpace,
@@ -9,6 +11,10 @@ import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
 import {
   BACKGROUND, UP_CHOICES, pointCloud, lineSegments, planes, keyframePath, sceneBounds,
 } from '../../shared/map-scene.js';
+import { gridMesh, voxelPoints, boxWireframes } from './occupancy-layers.js';
+
+// The layers that can be switched off, each one three.js object (or none yet).
+export const LAYERS = ['grid', 'voxels', 'people'];
 
 const TRAJECTORY_COLOR = '#ff7f0e';
 const GROUND_TRUTH_COLOR = '#9aa5b1';
@@ -31,7 +37,10 @@ function frustumGeometry() {
 function disposeObject(object) {
   object.traverse((o) => {
     if (o.geometry) o.geometry.dispose();
-    if (o.material) o.material.dispose();
+    if (o.material) {
+      if (o.material.map) o.material.map.dispose();
+      o.material.dispose();
+    }
   });
 }
 
@@ -60,6 +69,8 @@ export class LiveMap {
     this.frustum.matrixAutoUpdate = false;
     this.frustum.visible = false;
     this.scene.add(this.trajectory, this.groundTruth, this.frustum);
+    this.layers = {};
+    for (const name of LAYERS) this.layers[name] = { object: null, visible: true, count: 0 };
     this.rendered = false;
     this.resize();
     new ResizeObserver(() => {
@@ -105,6 +116,53 @@ export class LiveMap {
       }
     }
     this.requestRender();
+  }
+
+  // Replaces a layer's object (null: nothing to draw); its visibility stays as switched.
+  replaceLayer(name, object, count) {
+    const layer = this.layers[name];
+    if (layer.object) {
+      this.scene.remove(layer.object);
+      disposeObject(layer.object);
+    }
+    layer.object = object;
+    layer.count = object ? count : 0;
+    if (object) {
+      object.visible = layer.visible;
+      this.scene.add(object);
+    }
+    this.requestRender();
+  }
+
+  // occupancy: the decoded occupancy message ({grid, voxels}, see main.js).
+  setOccupancy(occupancy) {
+    const { grid, voxels } = occupancy;
+    this.replaceLayer('grid', gridMesh(grid), grid.width * grid.height);
+    this.replaceLayer('voxels', voxelPoints(voxels, this.camera.fov), voxels.count);
+  }
+
+  // boxes: the newest frame's moving objects ({min, max, state} in the world frame).
+  setObjectBoxes(boxes) {
+    const count = Array.isArray(boxes) ? boxes.length : 0;
+    if (!count && !this.layers.people.object) return;
+    this.replaceLayer('people', boxWireframes(boxes), count);
+  }
+
+  setLayerVisible(name, visible) {
+    const layer = this.layers[name];
+    layer.visible = visible;
+    if (layer.object) layer.object.visible = visible;
+    this.requestRender();
+  }
+
+  // What each layer draws now (for the page's state, read by the browser test).
+  layerState() {
+    const out = {};
+    for (const name of LAYERS) {
+      const { object, visible, count } = this.layers[name];
+      out[name] = { visible, drawn: Boolean(object && object.visible && object.parent === this.scene), count };
+    }
+    return out;
   }
 
   // pose: the camera's T_w_c as 16 numbers, column-major (or null when not tracked).
@@ -153,7 +211,9 @@ export class LiveMap {
     this.pending = true;
     requestAnimationFrame(() => {
       this.pending = false;
+      const start = performance.now();
       this.renderer.render(this.scene, this.camera);
+      this.renderMs = performance.now() - start;
       this.rendered = true;
     });
   }

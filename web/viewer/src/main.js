@@ -2,13 +2,17 @@
 // figures and the run's controls, fed by the WebSocket at /ws (see docs/viewer.md).
 //
 // Messages from the server: text JSON {type: "hello" | "stats"}, and binary ones whose first byte
-// is the type: 1 a frame (uint32 frame id at byte 4, then the JPEG), 2 a map snapshot (uint32
-// length of a JSON header at byte 4, the header, then the arrays it counts, each 4-byte aligned).
+// is the type: 1 a frame (uint32 frame id at byte 4, then the JPEG), 2 a map snapshot and 3 an
+// occupancy snapshot (uint32 length of a JSON header at byte 4, the header, then the arrays it
+// counts, each 4-byte aligned).
 // To the server: {"cmd": "pause" | "resume" | "localize" | "map"}.
 import css from './style.css';
 import { h } from '../../shared/dom.js';
 import { isNum, num } from '../../shared/format.js';
-import { LiveMap } from './live-map.js';
+import { LiveMap, LAYERS } from './live-map.js';
+import { GRID_OCCUPIED, GRID_FREE, DYNAMIC_BOX_COLOR, CONSTRAINED_BOX_COLOR } from './occupancy-layers.js';
+
+const rgba = ([r, g, b, a]) => `rgba(${r}, ${g}, ${b}, ${(a / 255).toFixed(2)})`;
 
 const state = {
   framesReceived: 0,
@@ -18,6 +22,12 @@ const state = {
   lastStats: null,
   mapPoints: 0,
   trajectoryPoints: 0,
+  occupancyReceived: 0,
+  occupancy: null,       // the newest occupancy snapshot's counts
+  objectBoxes: 0,        // moving objects' boxes of the newest frame
+  objectBoxesSeen: 0,    // the most at once so far
+  layers: null,          // what each layer of the 3D map draws (LiveMap.layerState)
+  renderMs: null,        // the 3D map's last frame, on the page's thread
   connected: false,
 };
 // Read by the browser test (web/viewer/check-viewer.mjs, run by tests/app/viewer_browser.sh).
@@ -31,9 +41,14 @@ const status = h('span', { class: 'status', dataset: { connected: 'false' } }, '
 const pauseButton = h('button', { type: 'button', class: 'button', dataset: { control: 'pause' }, 'aria-pressed': 'false' }, 'Pause');
 const localizeButton = h('button', { type: 'button', class: 'button', dataset: { control: 'localize' }, 'aria-pressed': 'false' }, 'Localisation only');
 const followBox = h('input', { type: 'checkbox', checked: true, dataset: { control: 'follow' } });
+// The 3D map's layers, each a switch kept as set while the run goes on.
+const LAYER_LABELS = { grid: 'Grid', voxels: 'Voxels', people: 'People' };
+const layerBoxes = {};
+for (const name of LAYERS) layerBoxes[name] = h('input', { type: 'checkbox', checked: true, dataset: { control: `layer-${name}` } });
 const header = h('header', {},
   h('h1', {}, 'mcslam live'), status, pauseButton, localizeButton,
-  h('label', { class: 'control' }, followBox, ' Follow camera'));
+  h('label', { class: 'control' }, followBox, ' Follow camera'),
+  LAYERS.map((name) => h('label', { class: 'control' }, layerBoxes[name], ` ${LAYER_LABELS[name]}`)));
 
 let frameImage = h('img', { alt: 'current frame with its overlay', dataset: { view: 'frame' } });
 const FIGURES = [
@@ -65,7 +80,11 @@ const mapPanel = h('section', { class: 'panel' }, h('h2', {}, '3D map'), mapStag
     h('span', {}, h('i', { style: { background: '#ff7f0e' } }), 'trajectory'),
     h('span', {}, h('i', { style: { background: '#9aa5b1' } }), 'ground truth'),
     h('span', {}, h('i', { style: { background: '#7b2cbf' } }), 'keyframes'),
-    h('span', {}, h('i', { style: { background: '#0a7d2c' } }), 'camera')),
+    h('span', {}, h('i', { style: { background: '#0a7d2c' } }), 'camera'),
+    h('span', {}, h('i', { style: { background: rgba(GRID_OCCUPIED) } }), 'grid: occupied'),
+    h('span', {}, h('i', { style: { background: rgba(GRID_FREE) } }), 'free'),
+    h('span', {}, h('i', { style: { background: DYNAMIC_BOX_COLOR } }), 'people (dynamic)'),
+    h('span', {}, h('i', { style: { background: CONSTRAINED_BOX_COLOR } }), 'constrained movers')),
   mapHint);
 document.body.append(header, h('main', {}, framePanel, mapPanel));
 
@@ -77,6 +96,19 @@ try {
   mapStage.replaceWith(h('p', { class: 'hint' }, `The 3D map needs WebGL, which is not available here (${err && err.message ? err.message : err}).`));
 }
 followBox.addEventListener('change', () => map && map.setFollow(followBox.checked));
+function refreshLayers() {
+  if (map) {
+    state.layers = map.layerState();
+    state.renderMs = map.renderMs;
+  }
+}
+for (const name of LAYERS) {
+  layerBoxes[name].addEventListener('change', () => {
+    if (map) map.setLayerVisible(name, layerBoxes[name].checked);
+    refreshLayers();
+  });
+}
+refreshLayers();
 
 // ---------------------------------------------------------------- connection
 
@@ -122,6 +154,11 @@ function onText(message) {
     state.lastStats = message;
     showStats(message);
     if (map) map.setPose(message.pose);
+    const boxes = Array.isArray(message.object_boxes) ? message.object_boxes : [];
+    state.objectBoxes = boxes.length;
+    state.objectBoxesSeen = Math.max(state.objectBoxesSeen, boxes.length);
+    if (map) map.setObjectBoxes(boxes);
+    refreshLayers();
     document.body.dataset.ready = 'true';
   }
 }
@@ -167,12 +204,18 @@ function onBinary(buffer) {
     figureValues['map-points'].textContent = String(decoded.header.points_in_map);
     figureValues.loops.textContent = String(decoded.header.loops_closed);
     if (map) map.setMap(decoded);
+  } else if (type === 3) {
+    const decoded = decodeOccupancy(buffer);
+    state.occupancyReceived += 1;
+    state.occupancy = occupancyCounts(decoded);
+    if (map) map.setOccupancy(decoded);
+    refreshLayers();
   }
 }
 
-function decodeMap(buffer) {
-  const view = new DataView(buffer);
-  const length = view.getUint32(4, true);
+// The header and a reader of the arrays after it, each from a 4-byte boundary.
+function messageReader(buffer) {
+  const length = new DataView(buffer).getUint32(4, true);
   const header = JSON.parse(new TextDecoder().decode(new Uint8Array(buffer, 8, length)));
   let offset = 8 + length;
   const take = (Type, count) => {
@@ -181,6 +224,38 @@ function decodeMap(buffer) {
     offset += count * Type.BYTES_PER_ELEMENT;
     return array;
   };
+  return { header, take };
+}
+
+function decodeOccupancy(buffer) {
+  const { header, take } = messageReader(buffer);
+  const T = take(Float32Array, 16);
+  const cells = take(Int8Array, header.width * header.height);
+  const centres = take(Float32Array, 3 * header.voxels);
+  const sizes = take(Float32Array, header.voxels);
+  const rgb = take(Uint8Array, 3 * header.voxels);
+  return {
+    header,
+    grid: { width: header.width, height: header.height, resolution: header.resolution, T, cells },
+    voxels: { count: header.voxels, centres, sizes, rgb },
+  };
+}
+
+function occupancyCounts({ header, grid }) {
+  let occupied = 0;
+  let free = 0;
+  for (const v of grid.cells) {
+    if (v >= 50) occupied += 1;
+    else if (v >= 0) free += 1;
+  }
+  return {
+    version: header.version, width: header.width, height: header.height, occupied, free,
+    voxels: header.voxels, voxelsInMap: header.voxels_in_map,
+  };
+}
+
+function decodeMap(buffer) {
+  const { header, take } = messageReader(buffer);
   const points = take(Float32Array, 3 * header.points);
   const colors = take(Uint8Array, 3 * header.points);
   const lines = take(Float32Array, 6 * header.lines);
