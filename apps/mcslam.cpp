@@ -475,11 +475,13 @@ int main(int argc, char** argv) {
   TopicArgs node_topics;
   bool node_keep_all = false, node_sequential = false;
   std::string node_prefix = "/mcslam", node_map_frame = "map", node_camera_frame = "camera";
-  double node_cloud_period = 1.0;
+  std::string node_floor_frame = "floor", node_odom_frame;
+  double node_cloud_period = 1.0, node_grid_period = 1.0, node_odom_timeout = 0.05;
   auto* ros_cmd = cli.add_subcommand(
       "ros",
-      "ROS node: SLAM on live colour + depth topics; publishes pose, TF, path, map points and the "
-      "annotated image (needs ROS and a running roscore)");
+      "ROS node: SLAM on live colour + depth topics; publishes pose, TF, path, map points, the "
+      "occupancy grid and voxels, the people and the annotated image (needs ROS and a running "
+      "roscore)");
   ros_cmd->add_option("--output,-o", node_run.output_dir,
                       "Also write the run's results here when the node stops (Ctrl-C)");
   ros_cmd->add_option("--config,-c", node_run.config_path, "Settings file (mcslam or ORB-SLAM2)");
@@ -487,22 +489,41 @@ int main(int argc, char** argv) {
                       "Camera preset (tum_fr1, tum_fr2, tum_fr3, bonn) below the CameraInfo");
   add_topic_options(ros_cmd, node_topics);
   ros_cmd->add_option("--prefix", node_prefix,
-                      "Output topics: PREFIX/pose, PREFIX/path, PREFIX/map_points, PREFIX/image");
+                      "Output topics: PREFIX/pose, PREFIX/path, PREFIX/map_points, PREFIX/image, "
+                      "PREFIX/grid, PREFIX/occupied_voxels, PREFIX/people");
   ros_cmd->add_option("--map-frame", node_map_frame, "Frame of the poses and the map (map)");
-  ros_cmd->add_option("--camera-frame", node_camera_frame, "TF child frame of the camera");
+  ros_cmd->add_option("--camera-frame", node_camera_frame,
+                      "TF frame of the camera (camera): the colour camera's optical frame");
+  ros_cmd->add_option("--floor-frame", node_floor_frame,
+                      "Frame of the occupancy grid, tf MAP -> FLOOR on /tf_static (floor): a "
+                      "planner's global frame");
+  ros_cmd->add_option("--odom-frame", node_odom_frame,
+                      "The robot's odometry frame: publish tf MAP -> ODOM (REP 105) from ODOM -> "
+                      "CAMERA in tf, instead of MAP -> CAMERA (default: none)");
+  ros_cmd->add_option("--odom-timeout", node_odom_timeout,
+                      "Seconds a frame waits for ODOM -> CAMERA at its stamp, 0-1 (default 0.05)");
   ros_cmd
       ->add_option("--cloud-period", node_cloud_period,
-                   "Seconds between map point clouds (default 1)")
+                   "Seconds between map point and occupied voxel clouds (default 1)")
+      ->check(CLI::PositiveNumber);
+  ros_cmd
+      ->add_option("--grid-period", node_grid_period,
+                   "Seconds between occupancy grids, sent only when the map changed (default 1)")
       ->check(CLI::PositiveNumber);
   ros_cmd->add_flag("--keep-all", node_keep_all,
                     "Process every frame (replays, tests) instead of only the newest (a robot)");
   ros_cmd->add_flag("--sequential", node_sequential,
                     "Map inline after each keyframe (deterministic; replays and tests)");
   ros_cmd->add_option("--model", node_run.model, "ONNX object detector");
+  ros_cmd->add_option("--detections", node_run.detections,
+                      "Boxes from a detections file, matched by the images' stamps (replays of a "
+                      "recorded sequence and tests)");
   ros_cmd->add_option("--confidence", node_run.confidence, "Detector confidence threshold");
   ros_cmd->add_option("--features", node_run.features, "Subset of points,lines,planes");
   ros_cmd->add_option("--vocabulary", node_run.vocabulary, "Bag-of-words vocabulary file");
   ros_cmd->add_flag("--no-loop-closing", node_run.no_loop_closing, "Do not close loops");
+  ros_cmd->add_flag("--no-occupancy", node_run.no_occupancy,
+                    "No dense occupancy map: no PREFIX/grid and PREFIX/occupied_voxels");
   ros_cmd->add_flag("--save-map", node_run.save_map, "With --output: also map.ply and map.json");
   ros_cmd->add_flag("--save-overlays", node_run.save_overlays, "With --output: also overlays/");
   ViewerArgs node_viewer;
@@ -807,8 +828,12 @@ int main(int argc, char** argv) {
       options.prefix = node_prefix;
       options.map_frame = node_map_frame;
       options.camera_frame = node_camera_frame;
+      options.floor_frame = node_floor_frame;
+      options.odom_frame = node_odom_frame;
+      options.odom_timeout_s = node_odom_timeout;
       options.keep_all = node_keep_all;
       options.cloud_period_s = node_cloud_period;
+      options.grid_period_s = node_grid_period;
       if (node_sequential) node_run.sequential = true;
       apply_viewer_args(node_viewer, node_run);
       install_stop_handler();

@@ -810,6 +810,7 @@ nlohmann::json run_frames(const RunRequest& request, const std::string& source_p
     }
     summary["passes"] = pass_rows;
   }
+  if (request.on_end) request.on_end(system, summary);
   io::write_file_atomic((out / "summary.json").string(), summary.dump(2) + "\n");
   if (!failure.empty()) {
     status.failed(failure);

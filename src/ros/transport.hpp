@@ -3,8 +3,6 @@
 // interface without ROS types. Its .cpp is compiled as C++17: ROS 1 message headers use
 // std::allocator<void>::rebind, which C++20 removed.
 
-#include <array>
-#include <cstdint>
 #include <functional>
 #include <memory>
 #include <opencv2/core.hpp>
@@ -14,6 +12,7 @@
 #include "mcslam/core/se3.hpp"
 #include "mcslam/io/frame_source.hpp"
 #include "mcslam/ros/node_options.hpp"
+#include "node_messages.hpp"
 
 namespace mcslam::ros::detail {
 
@@ -22,11 +21,6 @@ struct TransportFrame {
   cv::Mat depth;  // metres
   double rgb_timestamp = 0.0;
   double depth_timestamp = 0.0;
-};
-
-struct CloudPoint {
-  float x = 0.0f, y = 0.0f, z = 0.0f;
-  std::array<std::uint8_t, 3> rgb{};
 };
 
 class Transport {
@@ -45,11 +39,23 @@ class Transport {
   /// False once ROS shuts down (the master went away, or shutdown()).
   static bool ok();
 
-  void publish_pose(double timestamp, const SE3& T_w_c);
+  /// The pose on <prefix>/pose, appended to the path, and its tf: map_frame -> camera_frame, or
+  /// with an odom_frame map_frame -> odom_frame (map_to_odom), for which odom_frame ->
+  /// camera_frame is looked up in tf at the stamp, waiting up to odom_timeout_s. Returns why no
+  /// tf was sent (the lookup failed), or "".
+  std::string publish_pose(double timestamp, const SE3& T_w_c);
   void publish_path();
   bool image_wanted() const;
   void publish_image(double timestamp, const cv::Mat& bgr);
-  void publish_cloud(double timestamp, const std::vector<CloudPoint>& points);
+  enum class Cloud { kMapPoints, kOccupiedVoxels };
+  /// <prefix>/map_points or <prefix>/occupied_voxels (x, y, z, rgb; map_frame; latched).
+  void publish_cloud(Cloud which, double timestamp, const std::vector<CloudPoint>& points);
+  /// The grid on <prefix>/grid (floor_frame, latched), after the static tf map_frame ->
+  /// floor_frame when that changed since the last one sent (or none was).
+  void publish_grid(double timestamp, const GridMessage& grid);
+  bool people_wanted() const;
+  /// A DELETEALL marker, then `markers`, on <prefix>/people (map_frame).
+  void publish_people(double timestamp, const std::vector<MarkerSpec>& markers);
   /// Stops the callbacks and shuts ROS down.
   void shutdown();
 

@@ -45,6 +45,11 @@ struct RunRequest {
   /// publishes from here).
   std::function<void(const slam::FrameResult&, const slam::PreparedImages&, slam::System&)>
       on_frame;
+  /// Called on the run's thread once, after the last frame and System::finish() (its maps are
+  /// complete), with the summary before summary.json is written; also after a failure
+  /// (summary["state"] says "failed"). The ROS node publishes its final map and adds its "ros"
+  /// section here.
+  std::function<void(slam::System&, nlohmann::json& summary)> on_end;
   /// The camera preset by name (--camera-preset: tum_fr1, tum_fr2, tum_fr3, bonn) instead of the
   /// one chosen by the folder or file name.
   std::optional<std::string> camera_preset;

@@ -14,8 +14,8 @@
 
 namespace mcslam::ros {
 
-/// Runs `request` (a RunRequest for the pipeline and the output folder; its `live` and
-/// `on_frame` are set here) on the topics until stop_requested() returns true or the ROS master
+/// Runs `request` (a RunRequest for the pipeline and the output folder; its `live`, `on_frame`
+/// and `on_end` are set here) on the topics until stop_requested() returns true or the ROS master
 /// goes away, then writes the outputs as `mcslam run` does (into request.output_dir; when that is
 /// empty into a temporary folder that is removed). Waits for the first CameraInfo unless the
 /// camera_info topic is empty. Returns the run's summary. Throws InputError for a master that
