@@ -535,6 +535,13 @@ nlohmann::json run_frames(const RunRequest& request, const std::string& source_p
       if (viewer) viewer->detach();
     }
   } detach_viewer{viewer};
+  // So do the callbacks' own threads (the ROS node's map publisher): RunRequest::on_detach.
+  struct DetachCallbacks {
+    const std::function<void()>& detach;
+    ~DetachCallbacks() {
+      if (detach) detach();
+    }
+  } detach_callbacks{request.on_detach};
 
   // The observers of each frame's result, in the order they see it.
   FrameRecorder recorder;

@@ -10,7 +10,6 @@
 #include <cstring>
 #include <deque>
 #include <filesystem>
-#include <iomanip>
 #include <iostream>
 #include <mutex>
 #include <thread>
@@ -19,7 +18,7 @@
 
 #include "mcslam/core/error.hpp"
 #include "mcslam/core/timing.hpp"
-#include "mcslam/mapping/worker.hpp"
+#include "node_publisher.hpp"
 #include "transport.hpp"
 
 namespace mcslam::ros {
@@ -99,134 +98,6 @@ class TopicSource : public app::LiveSource {
   bool drain_ = false;
   std::string error_;
   io::CameraHints hints_;
-};
-
-std::vector<detail::CloudPoint> map_points(const map::Map& map) {
-  std::vector<detail::CloudPoint> points;
-  auto lock = map.read_lock();
-  points.reserve(map.points().size());
-  for (const auto& [id, point] : map.points())
-    points.push_back({static_cast<float>(point.p_w.x()), static_cast<float>(point.p_w.y()),
-                      static_cast<float>(point.p_w.z()), point.color});
-  return points;
-}
-
-/// What the node publishes of each frame and at the end of the run, on the run's thread. The
-/// frame's path stays cheap: the dense map's snapshot is taken only when its grid or voxels are
-/// due (MappingWorker builds a snapshot once per map version), and converted into messages only
-/// when its version changed since the last one published.
-class FramePublisher {
- public:
-  FramePublisher(detail::Transport& transport, const NodeOptions& options)
-      : transport_(transport), options_(options) {}
-
-  void on_frame(const slam::FrameResult& r, const slam::PreparedImages& images,
-                const slam::System& system) {
-    last_timestamp_ = r.timestamp;
-    if (r.T_w_c) {
-      publish_pose(r.timestamp, *r.T_w_c);
-      if (path_watch_.elapsed_ms() > 200.0) {
-        transport_.publish_path();
-        path_watch_.restart();
-      }
-    }
-    if (transport_.image_wanted()) {
-      cv::Mat overlay = system.undistort(images.rgb);
-      if (overlay.channels() == 3) {
-        overlay = overlay.clone();
-        app::draw_overlay(overlay, r);
-        transport_.publish_image(r.timestamp, overlay);
-      }
-    }
-    if (!cloud_sent_ || cloud_watch_.elapsed_ms() > 1000.0 * options_.cloud_period_s) {
-      transport_.publish_cloud(detail::Transport::Cloud::kMapPoints, r.timestamp,
-                               map_points(system.map()));
-      cloud_watch_.restart();
-      cloud_sent_ = true;
-    }
-    if (const mapping::MappingWorker* worker = system.occupancy())
-      publish_map(r.timestamp, *worker, false);
-    publish_people(r);
-  }
-
-  /// The final map (when it changed since the last one published), and the "ros" section of the
-  /// summary.
-  void on_end(const slam::System& system, nlohmann::json& summary) {
-    if (system.occupancy() && summary.value("state", "") != "failed")
-      publish_map(last_timestamp_, *system.occupancy(), true);
-    summary["ros"] = {{"map_frame", options_.map_frame},
-                      {"camera_frame", options_.camera_frame},
-                      {"floor_frame", options_.floor_frame},
-                      {"odom_frame", options_.odom_frame},
-                      {"poses_published", poses_},
-                      {"odom_lookup_failures", odom_failures_},
-                      {"grids_published", grids_},
-                      {"voxel_clouds_published", voxel_clouds_},
-                      {"people_arrays_published", people_arrays_}};
-    if (odom_failures_ > 0)
-      std::cerr << "mcslam ros: " << odom_failures_ << " of " << poses_ << " poses had no tf "
-                << options_.odom_frame << " -> " << options_.camera_frame << ": no "
-                << options_.map_frame << " -> " << options_.odom_frame
-                << " was sent for them (summary.json \"ros\")\n";
-  }
-
- private:
-  void publish_pose(double timestamp, const SE3& T_w_c) {
-    ++poses_;
-    const std::string failure = transport_.publish_pose(timestamp, T_w_c);
-    if (failure.empty()) return;
-    ++odom_failures_;
-    if (odom_failures_ > 1 && warn_watch_.elapsed_ms() < 1000.0) return;
-    std::cerr << "mcslam ros: warning: no tf " << options_.odom_frame << " -> "
-              << options_.camera_frame << " at " << std::fixed << std::setprecision(6) << timestamp
-              << std::defaultfloat << " (" << failure << "): no " << options_.map_frame << " -> "
-              << options_.odom_frame << " sent (" << odom_failures_ << " so far)\n";
-    warn_watch_.restart();
-  }
-
-  void publish_map(double timestamp, const mapping::MappingWorker& worker, bool final) {
-    const bool grid_due =
-        final || !grid_version_ || grid_watch_.elapsed_ms() >= 1000.0 * options_.grid_period_s;
-    const bool voxels_due =
-        final || !voxel_version_ || voxel_watch_.elapsed_ms() >= 1000.0 * options_.cloud_period_s;
-    if (!grid_due && !voxels_due) return;
-    const std::shared_ptr<const mapping::OccupancySnapshot> snapshot = worker.snapshot();
-    if (snapshot->version == 0) return;  // nothing integrated yet
-    const mapping::OccupancyGrid& grid = snapshot->grid;
-    if (grid_due && grid_version_ != snapshot->version && grid.width > 0 && grid.height > 0) {
-      transport_.publish_grid(timestamp, detail::grid_message(grid));
-      grid_version_ = snapshot->version;
-      grid_watch_.restart();
-      ++grids_;
-    }
-    if (voxels_due && voxel_version_ != snapshot->version) {
-      transport_.publish_cloud(detail::Transport::Cloud::kOccupiedVoxels, timestamp,
-                               detail::voxel_points(snapshot->voxels));
-      voxel_version_ = snapshot->version;
-      voxel_watch_.restart();
-      ++voxel_clouds_;
-    }
-  }
-
-  /// The frame's moving objects, while someone listens; after the last frame that had some, one
-  /// array with only the DELETEALL, so that they disappear.
-  void publish_people(const slam::FrameResult& r) {
-    if (!transport_.people_wanted()) return;
-    const std::vector<detail::MarkerSpec> markers = detail::people_markers(r.objects);
-    if (markers.empty() && !people_shown_) return;
-    transport_.publish_people(r.timestamp, markers);
-    people_shown_ = !markers.empty();
-    ++people_arrays_;
-  }
-
-  detail::Transport& transport_;
-  const NodeOptions& options_;
-  Stopwatch cloud_watch_, path_watch_, grid_watch_, voxel_watch_, warn_watch_;
-  bool cloud_sent_ = false;
-  bool people_shown_ = false;
-  std::optional<std::uint64_t> grid_version_, voxel_version_;
-  double last_timestamp_ = 0.0;
-  std::size_t poses_ = 0, odom_failures_ = 0, grids_ = 0, voxel_clouds_ = 0, people_arrays_ = 0;
 };
 
 /// A tf2 frame id: not empty, no whitespace, no leading '/' (tf2 rejects those).
@@ -324,7 +195,7 @@ nlohmann::json run_node(app::RunRequest request, const NodeOptions& options,
       scratch = fs::temp_directory_path() / ("mcslam-ros-" + std::to_string(::getpid()));
       request.output_dir = scratch->string();
     }
-    FramePublisher publisher(transport, options);
+    detail::FramePublisher publisher(transport, options);
     request.live = source;
     request.on_frame = [&publisher](const slam::FrameResult& r, const slam::PreparedImages& images,
                                     slam::System& system) {
@@ -333,6 +204,7 @@ nlohmann::json run_node(app::RunRequest request, const NodeOptions& options,
     request.on_end = [&publisher](slam::System& system, nlohmann::json& run_summary) {
       publisher.on_end(system, run_summary);
     };
+    request.on_detach = [&publisher] { publisher.on_detach(); };
     summary = app::run_sequence(request);
     transport.publish_path();
   } catch (...) {

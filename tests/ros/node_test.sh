@@ -70,15 +70,17 @@ done
 # about (0.2, 0.9, 0.4)).
 ODOM_CAMERA=0.5,-0.2,0.3,0.029739299889,0.133826849502,0.059478599779,0.988771077936
 setsid "$MCSLAM" ros --output "$WORK/node" --sequential --keep-all --cloud-period 0.5 \
-  "${BOXES[@]}" --odom-frame odom > "$WORK/node_odom.log" 2>&1 &
+  --grid-period 0.5 "${BOXES[@]}" --odom-frame odom > "$WORK/node_odom.log" 2>&1 &
 node=$!
 groups+=($node)
 
 # ApproximateTime may hold the last pair back until a newer message arrives: FRAMES - 1.
 "$TOOL" play "$WORK/seq.bag" "$WORK/poses.txt" "$WORK/topics.txt" $((FRAMES - 1)) 240 \
   "$ODOM_CAMERA" "$WORK/map_odom.txt" || fail "player failed"
-# The player waited 1.5 s after the last pose: every frame is processed, and the node publishes
-# no grid until it stops. A subscriber that connects now gets one only if the grid is latched.
+# The player waited 1.5 s after the last pose: every frame is processed, the map no longer
+# changes, and its last grid was sent at most 0.6 s after its last change (--grid-period 0.5 and
+# the map thread's 0.1 s tick); nothing more is sent until the node stops. A subscriber that
+# connects now gets a grid only if it is latched.
 "$TOOL" grid /mcslam/grid 10 > "$WORK/grid.txt" || fail "no latched grid for a late subscriber"
 
 kill -INT "$node"

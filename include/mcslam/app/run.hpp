@@ -50,6 +50,10 @@ struct RunRequest {
   /// (summary["state"] says "failed"). The ROS node publishes its final map and adds its "ros"
   /// section here.
   std::function<void(slam::System&, nlohmann::json& summary)> on_end;
+  /// Called on the run's thread on every way out of the run (also when it ends with an
+  /// exception), before the System is destroyed; must not throw. Code that reads the System from
+  /// threads of its own (the ROS node's map publisher) lets go of it here.
+  std::function<void()> on_detach;
   /// The camera preset by name (--camera-preset: tum_fr1, tum_fr2, tum_fr3, bonn) instead of the
   /// one chosen by the folder or file name.
   std::optional<std::string> camera_preset;
