@@ -496,9 +496,9 @@ class Reader {
 
   /// A rows x cols matrix of `type`, its bytes as Writer::matrix wrote them.
   cv::Mat matrix(int rows, int cols, int type) {
+    const std::size_t n = static_cast<std::size_t>(rows) * cols * CV_ELEM_SIZE(type);
+    need(n);  // before allocating: a count read from the file may be large
     cv::Mat m(rows, cols, type);
-    const std::size_t n = static_cast<std::size_t>(rows) * cols * m.elemSize();
-    need(n);
     std::memcpy(m.data, data_.data() + at_, n);
     at_ += n;
     return m;
@@ -639,7 +639,8 @@ mapping::KeyframeSamples read_dense_keyframe(Reader& r, const SessionInfo& info)
   kf.step = r.get<std::int32_t>();
   const auto rows = r.get<std::int32_t>();
   const auto cols = r.get<std::int32_t>();
-  if (kf.step < 1 || rows != kf.camera.height / kf.step || cols != kf.camera.width / kf.step)
+  if (kf.step < 1 || kf.step > 64 || rows != kf.camera.height / kf.step ||
+      cols != kf.camera.width / kf.step || rows < 1 || cols < 1)
     r.fail("samples " + std::to_string(cols) + "x" + std::to_string(rows) + " at step " +
            std::to_string(kf.step) + " do not fit its " + std::to_string(kf.camera.width) + "x" +
            std::to_string(kf.camera.height) + " image");
@@ -770,7 +771,8 @@ std::optional<std::string> check_dense(const std::vector<mapping::KeyframeSample
     if (i > 0 && kf.id <= dense[i - 1].id) return name + ": ids not in increasing order";
     if (!finite(kf.T_w_c)) return name + " has a non-finite pose or a non-unit rotation";
     if (auto problem = kf.camera.check()) return name + ": camera: " + *problem;
-    if (kf.step < 1 || kf.depth_mm.type() != CV_16UC1 || kf.kind.type() != CV_8UC1 ||
+    if (kf.step < 1 || kf.step > 64 || kf.depth_mm.type() != CV_16UC1 ||
+        kf.kind.type() != CV_8UC1 || kf.depth_mm.empty() ||
         kf.depth_mm.rows != kf.camera.height / kf.step ||
         kf.depth_mm.cols != kf.camera.width / kf.step || kf.kind.size() != kf.depth_mm.size() ||
         (!kf.colour.empty() &&

@@ -753,6 +753,9 @@ TEST_F(SessionFileErrors, ValidChecksumButInconsistentContent) {
   h.dense_step = 3;  // 16 x 8 at step 3 is 5 x 2 samples, not 4 x 2
   expect_inconsistent(h, {"dense map keyframe 4", "do not fit"});
   h = Handmade{};
+  h.dense_step = 0;
+  expect_inconsistent(h, {"dense map keyframe 4", "do not fit"});
+  h = Handmade{};
   h.dense_kind = 7;
   expect_inconsistent(h, {"dense map keyframe 4", "kind 7"});
   h = Handmade{};
