@@ -178,16 +178,33 @@ TEST(OccupancyMap, PushedChairIsOccupiedWhereItIsAndItsFirstPlaceFree) {
   EXPECT_TRUE(green);
 }
 
+/// A chair (a mover's box in BoxWorld) and its place 1 m along +y, seen by 5 keyframes 1.8 m in
+/// front of them moving sideways.
+struct PushedChair {
+  WorldBox first{{4.0, 1.9, 0.012}, {4.45, 2.35, 0.9}, false, {30, 120, 30}, true};
+  WorldBox last = moved(first, 1.0);
+  std::vector<SE3> poses = path();
+
+  static WorldBox moved(WorldBox box, double dy) {
+    box.min.y() += dy;
+    box.max.y() += dy;
+    return box;
+  }
+  static std::vector<SE3> path() {
+    std::vector<SE3> out;
+    for (int i = 0; i < 5; ++i) out.push_back(look({2.2, 2.2 + 0.15 * i, 1.2}, 0.0, 0.35));
+    return out;
+  }
+};
+
 TEST(OccupancyMap, AMoverIsForgottenWhereItLeftAtOnce) {
   // The chair pushed after 3 keyframes and seen 2 more times: as a static object its first
   // place needs 9 keyframes to clear; marked as a mover, the first keyframe seeing through it.
-  const WorldBox first{{4.0, 1.9, 0.012}, {4.45, 2.35, 0.9}, false, {30, 120, 30}, true};
-  WorldBox last = first;
-  last.min.y() += 1.0;
-  last.max.y() += 1.0;
+  const PushedChair chair;
+  const WorldBox& first = chair.first;
+  const WorldBox& last = chair.last;
+  const std::vector<SE3>& poses = chair.poses;
   const PinholeCamera cam = test::make_camera();
-  std::vector<SE3> poses;
-  for (int i = 0; i < 5; ++i) poses.push_back(look({2.2, 2.2 + 0.15 * i, 1.2}, 0.0, 0.35));
   const auto build = [&](bool mover) {
     BoxWorld world;
     world.boxes.push_back(first);
@@ -218,13 +235,11 @@ TEST(OccupancyMap, AnObjectSeenStillIsForgottenWhereItStoodOnceItMoves) {
   // The chair stands still for 3 keyframes (a static box, track 7), then is pushed: the
   // keyframe that first sees it move (moving_objects {7}) relabels where the earlier keyframes
   // saw it, and its own rays and the next keyframe's free that place at once.
-  const WorldBox first{{4.0, 1.9, 0.012}, {4.45, 2.35, 0.9}, false, {30, 120, 30}, true};
-  WorldBox last = first;
-  last.min.y() += 1.0;
-  last.max.y() += 1.0;
+  const PushedChair chair;
+  const WorldBox& first = chair.first;
+  const WorldBox& last = chair.last;
+  const std::vector<SE3>& poses = chair.poses;
   const PinholeCamera cam = test::make_camera();
-  std::vector<SE3> poses;
-  for (int i = 0; i < 5; ++i) poses.push_back(look({2.2, 2.2 + 0.15 * i, 1.2}, 0.0, 0.35));
   const auto build = [&](bool tell_the_map) {
     BoxWorld world;
     world.boxes.push_back(first);
