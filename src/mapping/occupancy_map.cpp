@@ -199,9 +199,7 @@ struct OccupancyMap::Impl {
         if (region.depth_far > 0.0f && (z < region.depth_near || z > region.depth_far)) continue;
         kind = KeyframeSamples::kMover;
         if (z > options.max_range) continue;
-        const Eigen::Vector3d dir_z =
-            R * Eigen::Vector3d((uv.x() - kf.camera.cx) / kf.camera.fx,
-                                (uv.y() - kf.camera.cy) / kf.camera.fy, 1.0);
+        const Eigen::Vector3d dir_z = R * kf.ray(i, j);
         add_hit(o, dir_z, z, options.depth_sigma(z), nullptr, keys);
       }
     }
@@ -246,17 +244,14 @@ struct OccupancyMap::Impl {
 void OccupancyMap::Impl::collect(const KeyframeSamples& s) {
   const Eigen::Matrix3d R = s.T_w_c.rotation();
   const Eigen::Vector3d o = s.T_w_c.translation();
-  const PinholeCamera& cam = s.camera;
   const double max_range = options.max_range;
   for (int j = 0; j < s.depth_mm.rows; ++j) {
     for (int i = 0; i < s.depth_mm.cols; ++i) {
       const std::uint16_t mm = s.depth_mm.at<std::uint16_t>(j, i);
       if (mm == 0) continue;
       const double z = 1e-3 * mm;
-      const Eigen::Vector2d uv = s.pixel(i, j);
       // The ray at unit depth, in the world frame: p_w = o + z * dir_z.
-      const Eigen::Vector3d dir_z =
-          R * Eigen::Vector3d((uv.x() - cam.cx) / cam.fx, (uv.y() - cam.cy) / cam.fy, 1.0);
+      const Eigen::Vector3d dir_z = R * s.ray(i, j);
       if (z > max_range) {
         add_free(o, o + max_range * dir_z);
         continue;
@@ -342,33 +337,30 @@ void OccupancyMap::insert(const KeyframeDepth& keyframe) {
   impl_->insert_ms.back() = watch.elapsed_ms();
 }
 
+std::optional<std::string> KeyframeSamples::check() const {
+  if (auto problem = camera.check()) return problem;
+  if (step < 1 || step > 64) return "the sample step must be in [1, 64]";
+  const cv::Size size(camera.width / step, camera.height / step);
+  if (depth_mm.type() != CV_16UC1 || depth_mm.size() != size || kind.type() != CV_8UC1 ||
+      kind.size() != size ||
+      (!colour.empty() && (colour.type() != CV_8UC3 || colour.size() != size)))
+    return "samples that do not fit the camera: they must be CV_16UC1 depth, CV_8UC1 kinds (and "
+           "CV_8UC3 colour) of the camera's size over the step, " +
+           std::to_string(size.width) + "x" + std::to_string(size.height);
+  return std::nullopt;
+}
+
 void OccupancyMap::integrate_transient(const KeyframeDepth& view) {
   Stopwatch watch;
   impl_->integrate(sample_keyframe(view, impl_->options));
   impl_->insert_ms.push_back(watch.elapsed_ms());
 }
 
-namespace {
-
-void check_samples(const KeyframeSamples& s) {
-  const std::string what = "keyframe " + std::to_string(s.id) + ": ";
-  if (auto problem = s.camera.check()) throw InputError(what + *problem);
-  if (s.step < 1 || s.step > 64) throw InputError(what + "the sample step must be in [1, 64]");
-  const cv::Size size(s.camera.width / s.step, s.camera.height / s.step);
-  if (s.depth_mm.type() != CV_16UC1 || s.depth_mm.size() != size || s.kind.type() != CV_8UC1 ||
-      s.kind.size() != size ||
-      (!s.colour.empty() && (s.colour.type() != CV_8UC3 || s.colour.size() != size)))
-    throw InputError(what + "samples must be CV_16UC1 depth, CV_8UC1 mask (and CV_8UC3 colour) " +
-                     "of the camera's size over the step, " + std::to_string(size.width) + "x" +
-                     std::to_string(size.height));
-}
-
-}  // namespace
-
 void OccupancyMap::insert(KeyframeSamples samples) {
   Stopwatch watch;
   Impl& m = *impl_;
-  check_samples(samples);
+  if (auto problem = samples.check())
+    throw InputError("keyframe " + std::to_string(samples.id) + ": " + *problem);
   const auto found = m.index.find(samples.id);
   if (found != m.index.end()) {
     m.keyframes[found->second] = std::move(samples);

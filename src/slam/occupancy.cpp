@@ -16,22 +16,6 @@ std::vector<DynamicRegion> object_regions(const std::vector<ObjectReport>& objec
   return out;
 }
 
-void attach_objects(mapping::KeyframeDepth& keyframe, const std::vector<DynamicRegion>& still,
-                    const std::vector<DynamicRegion>& dynamic,
-                    const std::vector<DynamicRegion>& movers, double depth_margin) {
-  const auto margin = static_cast<float>(depth_margin);
-  for (const DynamicRegion& r : still) {
-    if (r.track_id < 0) continue;
-    const bool banded = r.depth_far > 0.0f;
-    keyframe.still_objects.push_back({r.track_id, r.box,
-                                      banded ? std::max(0.0f, r.depth_near - margin) : -1.0f,
-                                      banded ? r.depth_far + margin : -1.0f});
-  }
-  for (const auto* regions : {&dynamic, &movers})
-    for (const DynamicRegion& r : *regions)
-      if (r.track_id >= 0) keyframe.moving_objects.push_back(r.track_id);
-}
-
 cv::Mat region_mask(const cv::Mat& depth, const std::vector<DynamicRegion>& regions,
                     double depth_margin) {
   if (regions.empty() || depth.empty() || depth.type() != CV_32FC1) return {};
@@ -125,6 +109,32 @@ std::vector<mapping::FloorPlane> floor_candidates(const map::Map& map, double ma
     if (f.normal.dot(up) >= min_cos && below >= 0.2 && below <= 3.0) out.push_back(f);
   }
   return out;
+}
+
+mapping::KeyframeDepth dense_keyframe(const PinholeCamera& camera, const cv::Mat& depth,
+                                      const SE3& T_w_c, const std::vector<DynamicRegion>& still,
+                                      const std::vector<DynamicRegion>& dynamic,
+                                      const std::vector<DynamicRegion>& movers,
+                                      double depth_margin) {
+  mapping::KeyframeDepth kf;
+  kf.T_w_c = T_w_c;
+  kf.camera = camera;
+  kf.camera.distortion = {0.0, 0.0, 0.0, 0.0, 0.0};  // the depth is undistorted
+  kf.depth = depth;
+  kf.dynamic_mask = region_mask(depth, dynamic, depth_margin);
+  kf.mover_mask = region_mask(depth, movers, depth_margin);
+  const auto margin = static_cast<float>(depth_margin);
+  for (const DynamicRegion& r : still) {
+    if (r.track_id < 0) continue;
+    const bool banded = r.depth_far > 0.0f;
+    kf.still_objects.push_back({r.track_id, r.box,
+                                banded ? std::max(0.0f, r.depth_near - margin) : -1.0f,
+                                banded ? r.depth_far + margin : -1.0f});
+  }
+  for (const auto* regions : {&dynamic, &movers})
+    for (const DynamicRegion& r : *regions)
+      if (r.track_id >= 0) kf.moving_objects.push_back(r.track_id);
+  return kf;
 }
 
 }  // namespace mcslam::slam

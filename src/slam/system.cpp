@@ -67,23 +67,14 @@ System::System(const PinholeCamera& camera, const SystemOptions& options,
 
 void System::connect_occupancy() {
   occupancy_ = std::make_unique<mapping::MappingWorker>(options_.occupancy);
-  // The images the dense map gets are undistorted: their camera has no distortion.
-  PinholeCamera undistorted = camera_;
-  undistorted.distortion = {0.0, 0.0, 0.0, 0.0, 0.0};
   const double depth_margin = options_.tracker.dynamics.object_depth_gap;
   // On the mapper's thread (the map's writer: it reads the map without a lock).
-  mapper_->set_occupancy_sink([this, undistorted, depth_margin](const KeyFrameRequest& request,
-                                                                const cv::Mat& colour,
-                                                                const SE3& T_w_c) {
-    mapping::KeyframeDepth keyframe;
+  mapper_->set_occupancy_sink([this, depth_margin](const KeyFrameRequest& request,
+                                                   const cv::Mat& colour, const SE3& T_w_c) {
+    mapping::KeyframeDepth keyframe =
+        dense_keyframe(camera_, request.depth, T_w_c, request.still_regions,
+                       request.dynamic_regions, request.mover_regions, depth_margin);
     keyframe.id = request.id;
-    keyframe.T_w_c = T_w_c;
-    keyframe.camera = undistorted;
-    keyframe.depth = request.depth;
-    keyframe.dynamic_mask = region_mask(request.depth, request.dynamic_regions, depth_margin);
-    keyframe.mover_mask = region_mask(request.depth, request.mover_regions, depth_margin);
-    attach_objects(keyframe, request.still_regions, request.dynamic_regions, request.mover_regions,
-                   depth_margin);
     if (colour.type() == CV_8UC3 && colour.size() == request.depth.size()) keyframe.colour = colour;
     occupancy_->set_floor_candidates(floor_candidates(*map_));
     occupancy_->enqueue_shared(std::move(keyframe));
@@ -320,16 +311,11 @@ void System::add_localize_view(const cv::Mat& depth, const FrameResult& result) 
       result.timestamp - *last_localize_view_ < options_.occupancy.localize_view_period)
     return;
   last_localize_view_ = result.timestamp;
-  mapping::KeyframeDepth view;
-  view.T_w_c = *result.T_w_c;
-  view.camera = camera_;
-  view.camera.distortion = {0.0, 0.0, 0.0, 0.0, 0.0};  // the depth is undistorted
-  view.depth = depth;                                  // shared: never written once prepared
-  const double margin = options_.tracker.dynamics.object_depth_gap;
-  view.dynamic_mask =
-      region_mask(depth, object_regions(result.objects, ObjectState::kDynamic), margin);
-  view.mover_mask =
-      region_mask(depth, object_regions(result.objects, ObjectState::kConstrained), margin);
+  // Integrated, never stored: its objects seen still need not be told (nothing relabels it).
+  mapping::KeyframeDepth view = dense_keyframe(
+      camera_, depth, *result.T_w_c, {}, object_regions(result.objects, ObjectState::kDynamic),
+      object_regions(result.objects, ObjectState::kConstrained),
+      options_.tracker.dynamics.object_depth_gap);
   occupancy_->enqueue_transient(std::move(view));
 }
 

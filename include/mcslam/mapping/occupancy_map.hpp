@@ -16,6 +16,7 @@
 #include <memory>
 #include <opencv2/core/mat.hpp>
 #include <optional>
+#include <string>
 #include <unordered_map>
 #include <vector>
 
@@ -94,8 +95,17 @@ struct KeyframeSamples {
     const double offset = 0.5 * (step - 1);
     return {i * step + offset, j * step + offset};
   }
+  /// The ray through sample (i, j) at unit depth, in the camera frame: p_c = z * ray(i, j).
+  Eigen::Vector3d ray(int i, int j) const {
+    const Eigen::Vector2d uv = pixel(i, j);
+    return {(uv.x() - camera.cx) / camera.fx, (uv.y() - camera.cy) / camera.fy, 1.0};
+  }
   /// Bytes of the images (what a keyframe costs the map, beside its headers).
   std::size_t bytes() const;
+  /// An empty optional when the samples fit their camera (a valid camera, a step in [1, 64],
+  /// CV_16UC1 depth and CV_8UC1 kinds, and CV_8UC3 colour or none, of the camera's size over the
+  /// step); otherwise what is wrong. OccupancyMap::insert and map::save_session check it.
+  std::optional<std::string> check() const;
 };
 
 /// The floor in the world frame: normal . p + d = 0, |normal| = 1, the normal pointing up into

@@ -33,12 +33,16 @@ struct DynamicRegion {
 std::vector<DynamicRegion> object_regions(const std::vector<ObjectReport>& objects,
                                           ObjectState state);
 
-/// The keyframe's objects for the dense map (mapping::KeyframeDepth::still_objects and
-/// moving_objects): the still ones with their depth band widened by depth_margin metres, the
-/// ids of the moving ones (people and other movers, constrained movers).
-void attach_objects(mapping::KeyframeDepth& keyframe, const std::vector<DynamicRegion>& still,
-                    const std::vector<DynamicRegion>& dynamic,
-                    const std::vector<DynamicRegion>& movers, double depth_margin);
+/// A keyframe (or a view) for the dense map: the frame's undistorted depth (shared) seen by
+/// `camera` without its distortion, at T_w_c; the masks of its people and movers (region_mask,
+/// depth bands widened by depth_margin metres); its objects seen still (by track, bands widened
+/// alike) and the tracks of its moving ones (mapping::KeyframeDepth::still_objects,
+/// moving_objects). The id and the colour are the caller's to set.
+mapping::KeyframeDepth dense_keyframe(const PinholeCamera& camera, const cv::Mat& depth,
+                                      const SE3& T_w_c, const std::vector<DynamicRegion>& still,
+                                      const std::vector<DynamicRegion>& dynamic,
+                                      const std::vector<DynamicRegion>& movers,
+                                      double depth_margin);
 
 /// CV_8UC1 of depth's size, 255 on the pixels of the regions whose depth lies within their band
 /// widened by `depth_margin` metres (or has no depth), 0 elsewhere; empty without regions.
