@@ -98,7 +98,12 @@ async function checkLayers(page, viewer) {
   check(v.layers && v.layers.grid.drawn && v.layers.voxels.drawn && v.layers.voxels.count === v.occupancy.voxels,
     `the grid and the voxels are drawn (${JSON.stringify(v.layers)})`);
 
+  // The pixels are compared with the run paused (and what was in flight delivered), so that
+  // only the switches change the view: a run going on grows the map and the trajectory.
   await page.locator('input[data-control=follow]').uncheck();
+  await page.click('button[data-control=pause]');
+  await page.waitForFunction(() => window.mcslamViewer.lastStats && window.mcslamViewer.lastStats.held, null, { timeout: 30_000 }).catch(() => {});
+  await sleep(1500);
   await setLayer(page, 'grid', true);
   const withLayers = await drawnPixels(page);
   for (const name of ['grid', 'voxels', 'people']) await setLayer(page, name, false);
@@ -107,18 +112,21 @@ async function checkLayers(page, viewer) {
   const hidden = ['grid', 'voxels', 'people'].every((n) => !v.layers[n].visible && !v.layers[n].drawn);
   check(hidden, `switched off, no layer is drawn (${JSON.stringify(v.layers)})`);
   check(withLayers - without > 1000, `the view loses the grid's and voxels' pixels (${withLayers} -> ${without}; a frame took ${Number(v.renderMs).toFixed(1)} ms to draw)`);
-  // A new occupancy snapshot keeps the layer hidden.
-  const received = v.occupancyReceived;
-  await page.waitForFunction((n) => window.mcslamViewer.occupancyReceived > n, received, { timeout: 15_000 }).catch(() => {});
-  v = await viewer();
-  check(v.occupancyReceived > received && !v.layers.grid.drawn && !v.layers.voxels.drawn,
-    `and stays off when the next snapshot arrives (${received} -> ${v.occupancyReceived})`);
   for (const name of ['grid', 'voxels', 'people']) await setLayer(page, name, true);
   const again = await drawnPixels(page);
   v = await viewer();
   check(v.layers.grid.drawn && v.layers.voxels.drawn && v.layers.people.visible
     && v.layers.people.drawn === (v.layers.people.count > 0), `switched on, they are drawn again (${JSON.stringify(v.layers)})`);
   check(again - without > 1000, `the view shows them again (${without} -> ${again})`);
+  await page.click('button[data-control=pause]');
+  // A new occupancy snapshot keeps a hidden layer hidden.
+  for (const name of ['grid', 'voxels']) await setLayer(page, name, false);
+  const received = (await viewer()).occupancyReceived;
+  await page.waitForFunction((n) => window.mcslamViewer.occupancyReceived > n, received, { timeout: 15_000 }).catch(() => {});
+  v = await viewer();
+  check(v.occupancyReceived > received && !v.layers.grid.drawn && !v.layers.voxels.drawn,
+    `and stays off when the next snapshot arrives (${received} -> ${v.occupancyReceived})`);
+  for (const name of ['grid', 'voxels']) await setLayer(page, name, true);
   await page.locator('input[data-control=follow]').check();
 }
 
