@@ -166,11 +166,15 @@ PoseOptimizationResult optimize_pose(const PinholeCamera& camera, const SE3& ini
     // counted: however many there are, they leave the position along their plane and the rotation
     // about its normal free.
     if (landmarks < 3) break;
-    if (!solve_pose(terms, pose, solver_options).usable) {
+    const PoseSolverSummary solved = solve_pose(terms, pose, solver_options);
+    if (!solved.usable) {
       pose_to_block(T_start, pose);
       result.failed = true;
       break;
     }
+    result.information = solved.information;
+    result.residuals = solved.residuals;
+    result.final_cost = solved.final_cost;
     classify(camera, problem, block_to_pose(pose), options, result);
     // Too few inliers of all kinds together to go on rejecting outliers. Constraint inliers are
     // evidence for the classification too (the landmark minimum is enforced above).

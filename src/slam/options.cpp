@@ -55,6 +55,7 @@ std::optional<std::string> TrackerOptions::check() const {
   if (!(plane_match_distance > 0.0)) return "tracker.plane_match_distance must be positive";
   if (!(on_plane_distance > 0.0)) return "tracker.on_plane_distance must be positive";
   if (auto e = pose.check()) return e;
+  if (auto e = pose_filter.check()) return "tracker." + *e;
   return dynamics.check();
 }
 

@@ -265,13 +265,13 @@ FrameResult System::process(const PreparedImages& images, double timestamp,
   remember_moving_regions(result);
   if (readout_) observe_readout(frame, motion, outcome);
   if (outcome.state == TrackingState::kOk) {
-    result.T_w_c = outcome.T_c_w.inverse();
+    result.T_w_c = outcome.T_c_w_online.inverse();
     place_moving_objects(images.depth, *result.T_w_c, result);
     if (options_.localize && occupancy_) add_localize_view(images.depth, result);
     record.tracked = true;
     record.reference = outcome.reference;
     record.T_c_ref = outcome.T_c_ref;
-    record.T_c_w = outcome.T_c_w;
+    record.T_c_w = outcome.T_c_w_online;
   }
   if (outcome.keyframe) {
     result.keyframe = true;

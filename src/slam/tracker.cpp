@@ -210,6 +210,7 @@ Tracker::Tracker(const PinholeCamera& camera, const TrackerOptions& options, con
       map_(map),
       vocabulary_(std::move(vocabulary)),
       direct_levels_up_(direct_levels_up),
+      pose_filter_(options.pose_filter),
       objects_(camera, options.dynamics) {}
 
 TrackingOutcome Tracker::track(const Frame& frame, bool mapper_idle, std::size_t mapper_queue,
@@ -266,6 +267,7 @@ TrackingOutcome Tracker::track(const Frame& frame, bool mapper_idle, std::size_t
     state_ = TrackingState::kLost;
     velocity_.reset();
     previous_velocity_.reset();
+    pose_filter_.reset();
     objects_.forget();
     out.state = state_;
     return out;
@@ -342,6 +344,16 @@ TrackingOutcome Tracker::outcome_of(const Frame& frame, const Associations& asso
 
 void Tracker::accept(const Frame& frame, const Associations& assoc, const SE3& T_c_w,
                      bool mapper_idle, std::size_t mapper_queue, TrackingOutcome& out) {
+  // The pose a robot steers by: the frame's pose fused with the motion model. Tracking itself
+  // (the next frame's prediction, keyframes, the final trajectory) goes on from the frame's own
+  // pose, so that the filter never feeds back into what it filters. A relocalised pose is a jump
+  // the motion model must not smooth away.
+  if (out.relocalised) pose_filter_.reset();
+  const optim::PoseFilterUpdate filtered =
+      pose_filter_.update(frame.timestamp, T_c_w, pose_information_);
+  out.T_c_w_online = filtered.T_c_w;
+  out.filter_nis = filtered.nis;
+  out.filter_restarted = filtered.restarted;
   if (const auto T_last = last_frame_pose(); T_last && state_ == TrackingState::kOk) {
     previous_velocity_ = velocity_;
     previous_velocity_dt_ = velocity_dt_;
@@ -386,6 +398,7 @@ TrackingOutcome Tracker::initialize(const Frame& frame) {
   const Associations none(frame);
   out.state = state_;
   out.T_c_w = SE3();
+  out.T_c_w_online = SE3();
   // Nothing tells yet which object moves: the map starts from the features outside the boxes
   // when they are enough, else from all.
   objects_.prepare(frame, std::nullopt);
@@ -445,6 +458,7 @@ void Tracker::follow_map() {
   for (auto& track : last_->tracks)
     for (Eigen::Vector3d& p : track) p = W * p;
   objects_.move_world(W);
+  pose_filter_.move_world(W);
 }
 
 std::optional<SE3> Tracker::last_frame_pose() const {
@@ -744,6 +758,7 @@ int Tracker::optimize(const Frame& frame, Associations& assoc, SE3& T_c_w) {
     return 0;
   }
   T_c_w = result.T_c_w;
+  pose_information_ = result.information;
   // Features left out (on moving objects) count as outliers everywhere downstream: no landmark,
   // no statistics, no depth point for the next frame.
   for (std::size_t i = 0; i < assoc.points.size(); ++i)

@@ -16,6 +16,7 @@
 
 #include <vector>
 
+#include "mcslam/core/se3.hpp"
 #include "mcslam/optim/levenberg_marquardt.hpp"
 
 namespace mcslam::optim {
@@ -41,6 +42,11 @@ struct PoseSolverSummary {
   int successful = 0;  // steps taken
   double initial_cost = 0.0;
   double final_cost = 0.0;
+  /// J^T W J on the tangent at the last pose the solver linearised at (the final pose, or the one
+  /// before a last step too small to count): the pose's information under the terms' weights.
+  Matrix6d information = Matrix6d::Zero();
+  /// Rows of all terms together.
+  int residuals = 0;
 };
 
 /// Minimises 0.5 * sum rho(|r_i|^2) over the pose block `pose` (7 doubles, updated in place).

@@ -8,6 +8,7 @@
 #include "mcslam/features/planes.hpp"
 #include "mcslam/mapping/options.hpp"
 #include "mcslam/optim/bundle_adjustment.hpp"
+#include "mcslam/optim/pose_filter.hpp"
 #include "mcslam/optim/pose_graph.hpp"
 #include "mcslam/optim/pose_optimizer.hpp"
 #include "mcslam/optim/trajectory_smoothing.hpp"
@@ -118,6 +119,9 @@ struct TrackerOptions {
   double on_plane_distance = 0.02;
 
   optim::PoseOptimizerOptions pose;
+  /// The frame's pose fused with the motion model (optim/pose_filter.hpp): what process()
+  /// returns, trajectory_online.txt, the keyframes and the next frame's prediction.
+  optim::PoseFilterOptions pose_filter;
   /// Dynamic objects (Algorithm 1) and moving constraints (Algorithm 2), when frames carry
   /// detections.
   DynamicsOptions dynamics;

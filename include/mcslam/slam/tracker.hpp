@@ -16,6 +16,7 @@
 #include "mcslam/core/timing.hpp"
 #include "mcslam/map/map.hpp"
 #include "mcslam/optim/constraint_residual.hpp"
+#include "mcslam/optim/pose_filter.hpp"
 #include "mcslam/place/vocabulary.hpp"
 #include "mcslam/slam/dynamics.hpp"
 #include "mcslam/slam/frame.hpp"
@@ -85,7 +86,12 @@ struct RelocalisationInfo {
 struct TrackingOutcome {
   TrackingState state = TrackingState::kNotInitialized;
   bool relocalised = false;
-  SE3 T_c_w;                               // valid when state == kOk
+  SE3 T_c_w;  // valid when state == kOk
+  /// The pose fused with the motion model (tracker.pose_filter; T_c_w when it is off): what
+  /// process() returns and trajectory_online.txt holds.
+  SE3 T_c_w_online;
+  double filter_nis = 0.0;                 // its normalised innovation squared (0 on a restart)
+  bool filter_restarted = false;           // the filter started again at T_c_w
   map::KeyFrameId reference = map::kNoId;  // keyframe the pose is stored relative to
   SE3 T_c_ref;                             // pose relative to that keyframe
   int matches = 0;                         // points matched (landmarks and depth points)
@@ -311,6 +317,9 @@ class Tracker {
   std::uint64_t last_keyframe_frame_ = 0;
   std::uint64_t last_relocalisation_frame_ = 0;
   int solver_failures_ = 0;
+  // The information of the frame's last pose optimisation, and the filter it goes to.
+  Matrix6d pose_information_ = Matrix6d::Zero();
+  optim::PoseFilter pose_filter_;
   // Local map of the current frame.
   map::KeyFrameId reference_ = map::kNoId;
   LocalMap local_;

@@ -1,0 +1,106 @@
+#pragma once
+// A causal filter on the tracked camera pose: the white-noise-acceleration motion model of the
+// final trajectory's smoothing (trajectory_smoothing.hpp), applied frame by frame to the whole
+// pose, rotation and position together.
+//
+// Each frame's pose is estimated from that frame's observations alone. Where the scene leaves a
+// direction weakly determined (a small rotation about the image's vertical axis and a sideways
+// shift of the camera move the image alike; only depth and the scene's depth range tell them
+// apart), the estimate wanders along it from frame to frame by several millimetres, while the
+// camera, a body with mass, moved smoothly. The filter keeps the camera centre c and velocity v
+// (world frame) and the rotation R_c_w and angular velocity w (camera frame), and fuses each
+// frame's pose with the prediction of the motion model, weighted by the pose's information
+// matrix (the pose optimiser's J^T W J): a direction the observations fix well follows them, a
+// direction they leave loose follows the motion. It is the Kalman filter of that model, on an
+// error state:
+//   x = [dc, dv, dtheta, dw],   c = c^ + dc,  R_c_w = exp(dtheta) R^,
+// predicted over dt as c + v dt, exp(w dt) R with process noise from the spectral densities of
+// the acceleration (q_p, m^2/s^3) and the angular acceleration (q_r, rad^2/s^3):
+//   Var over dt of (position, velocity) per axis = q [dt^3/3, dt^2/2; dt^2/2, dt].
+// A measurement whose innovation the model cannot explain (normalised innovation squared above a
+// chi-square gate) restarts the pose at it, keeping the velocities (the camera did not stop);
+// the tracker resets the filter after a relocalisation and moves its state with the map.
+
+#include <Eigen/Core>
+#include <optional>
+#include <string>
+
+#include "mcslam/core/se3.hpp"
+
+namespace mcslam::optim {
+
+struct PoseFilterOptions {
+  /// Off (the default): the filter returns each measurement as it is (the pose of the frame's own
+  /// observations). Its fixed densities suit a handheld camera (online RPE over one frame 8.8 ->
+  /// 5.6 mm on freiburg1_rpy, 10.0 -> 3.4 mm on Bonn crowd part 1) but not a faster one: the
+  /// synthetic room at 2.5 times the usual speed goes from 2.1 to 8.8 mm (docs/cli.md).
+  bool enabled = false;
+  /// q_p, spectral density of the camera centre's acceleration per axis (m^2/s^3). The ground
+  /// truth of the handheld sequences at hand measures 0.006 (freiburg1_rpy) and 0.003 (Bonn crowd
+  /// part 1); 0.01 lets the camera move a little livelier than both (the final smoothing's value).
+  double acceleration_density = 0.01;
+  /// q_r, spectral density of the angular acceleration per axis (rad^2/s^3): handheld
+  /// freiburg1_rpy's ground truth measures about 1 (its rolls and pitches reach 1.5 rad/s in a
+  /// second); 3 lets the camera turn a little livelier than that.
+  double angular_acceleration_density = 3.0;
+  /// The measurement's covariance is the pose optimiser's (1 pixel at the keypoint's level)
+  /// times this factor squared. The pose's real frame-to-frame error is larger than the frame's
+  /// keypoint noise alone explains: its inliers' residuals say 0.66 px (a posteriori variance
+  /// factor 0.44, Bonn crowd part 1's static start), but the pose moves 1.5-2 times the
+  /// optimiser's sigma between frames, as each frame matches another subset of map points, each
+  /// with its own depth error (Kinect: 18 mm at 2.5 m). 6 makes the filter consistent on
+  /// freiburg1_rpy's fast handheld motion: mean normalised innovation squared 5.0 against 6
+  /// expected for 6 dof (on Bonn crowd's slow walk it is 0.45: the filter smooths less than it
+  /// could there).
+  double measurement_noise_scale = 6.0;
+  /// Normalised innovation squared (6 dof) above which the filter restarts at the measurement:
+  /// 22.46 is chi-square's 99.9 % point.
+  double gate_chi2 = 22.46;
+  /// A longer time between two measurements restarts the filter (seconds).
+  double max_gap = 0.5;
+
+  std::optional<std::string> check() const;
+};
+
+/// What the filter did with one measurement.
+struct PoseFilterUpdate {
+  SE3 T_c_w;               ///< the filtered pose
+  double nis = 0.0;        ///< normalised innovation squared (0 on a restart)
+  bool restarted = false;  ///< the state was set to the measurement
+};
+
+class PoseFilter {
+ public:
+  explicit PoseFilter(const PoseFilterOptions& options = {});
+
+  /// Fuses the pose T_c_w measured at `timestamp` with the prediction. `information` is the
+  /// measurement's information matrix on the tangent of se3_manifold.hpp (xi = [rho; phi],
+  /// T' = exp(xi) T_c_w); it may be singular (a direction the frame does not observe).
+  PoseFilterUpdate update(double timestamp, const SE3& T_c_w, const Matrix6d& information);
+
+  /// Forgets the state (tracking lost): the next measurement starts the filter again.
+  void reset() { started_ = false; }
+
+  /// The map moved under the tracker (bundle adjustment, a loop correction): W maps positions of
+  /// the old world to the new one; the state follows it.
+  void move_world(const SE3& W);
+
+  bool started() const { return started_; }
+
+ private:
+  using Matrix12d = Eigen::Matrix<double, 12, 12>;
+  void restart(double timestamp, const SE3& T_c_w, const Matrix6d& information,
+               bool keep_velocities);
+  void predict(double dt);
+
+  PoseFilterOptions options_;
+  bool started_ = false;
+  double timestamp_ = 0.0;
+  Eigen::Vector3d c_ = Eigen::Vector3d::Zero();      // camera centre, world
+  Eigen::Vector3d v_ = Eigen::Vector3d::Zero();      // its velocity, world
+  Eigen::Matrix3d R_ = Eigen::Matrix3d::Identity();  // R_c_w
+  Eigen::Vector3d w_ = Eigen::Vector3d::Zero();      // angular velocity, camera frame (left)
+  Matrix12d P_ = Matrix12d::Identity();
+};
+
+}  // namespace mcslam::optim

@@ -1,0 +1,172 @@
+#include "mcslam/optim/pose_filter.hpp"
+
+#include <Eigen/Dense>
+#include <cmath>
+
+namespace mcslam::optim {
+
+std::optional<std::string> PoseFilterOptions::check() const {
+  const auto positive = [](double x) { return std::isfinite(x) && x > 0.0; };
+  if (!positive(acceleration_density))
+    return "pose_filter.acceleration_density must be a positive number (m^2/s^3)";
+  if (!positive(angular_acceleration_density))
+    return "pose_filter.angular_acceleration_density must be a positive number (rad^2/s^3)";
+  if (!positive(measurement_noise_scale))
+    return "pose_filter.measurement_noise_scale must be a positive number";
+  if (!positive(gate_chi2)) return "pose_filter.gate_chi2 must be a positive number";
+  if (!positive(max_gap)) return "pose_filter.max_gap must be a positive number of seconds";
+  return std::nullopt;
+}
+
+namespace {
+
+using Matrix3d = Eigen::Matrix3d;
+using Vector3d = Eigen::Vector3d;
+using Matrix12d = Eigen::Matrix<double, 12, 12>;
+using Matrix12x6d = Eigen::Matrix<double, 12, 6>;
+
+// The state's blocks: camera centre, its velocity, rotation, angular velocity.
+constexpr int kC = 0, kV = 3, kTheta = 6, kW = 9;
+
+Matrix3d rotation_exp(const Vector3d& phi) { return so3_exp(phi).toRotationMatrix(); }
+
+Vector3d rotation_log(const Matrix3d& R) { return so3_log(Eigen::Quaterniond(R)); }
+
+SE3 pose_of(const Matrix3d& R_c_w, const Vector3d& c) { return SE3(R_c_w, -(R_c_w * c)); }
+
+/// The measurement's information on y = [dc; dtheta] from the solver's xi = [rho; phi]: to first
+/// order a left step exp(xi) moves the centre by -R^T rho and turns by phi.
+Matrix6d information_on_centre(const Matrix6d& H_xi, const Matrix3d& R_c_w) {
+  Matrix6d M = Matrix6d::Zero();
+  M.block<3, 3>(0, 0) = -R_c_w;
+  M.block<3, 3>(3, 3).setIdentity();
+  Matrix6d H = M.transpose() * H_xi * M;
+  return 0.5 * (H + H.transpose());
+}
+
+/// Rows of the measured blocks (centre, rotation) of the 12-state.
+Matrix12x6d measured_columns(const Matrix12d& P) {
+  Matrix12x6d PC;
+  PC.leftCols<3>() = P.middleCols<3>(kC);
+  PC.rightCols<3>() = P.middleCols<3>(kTheta);
+  return PC;
+}
+
+}  // namespace
+
+PoseFilter::PoseFilter(const PoseFilterOptions& options) : options_(options) {}
+
+void PoseFilter::restart(double timestamp, const SE3& T_c_w, const Matrix6d& information,
+                         bool keep_velocities) {
+  const Matrix12d before = P_;
+  if (!keep_velocities) {
+    v_.setZero();
+    w_.setZero();
+  }
+  started_ = true;
+  timestamp_ = timestamp;
+  R_ = T_c_w.rotation();
+  c_ = -(R_.transpose() * T_c_w.translation());
+  // The pose as uncertain as its measurement says (a direction it leaves free: 1 m, 1 rad); the
+  // velocities unknown at a handheld camera's scale (1 m/s, 2 rad/s).
+  const double s2 = options_.measurement_noise_scale * options_.measurement_noise_scale;
+  Matrix6d H = information_on_centre(information, R_) / s2;
+  H += Matrix6d::Identity();
+  const Matrix6d cov = H.inverse();
+  P_.setZero();
+  P_.block<3, 3>(kC, kC) = cov.block<3, 3>(0, 0);
+  P_.block<3, 3>(kC, kTheta) = cov.block<3, 3>(0, 3);
+  P_.block<3, 3>(kTheta, kC) = cov.block<3, 3>(3, 0);
+  P_.block<3, 3>(kTheta, kTheta) = cov.block<3, 3>(3, 3);
+  if (keep_velocities) {
+    P_.block<3, 3>(kV, kV) = before.block<3, 3>(kV, kV);
+    P_.block<3, 3>(kW, kW) = before.block<3, 3>(kW, kW);
+  } else {
+    P_.block<3, 3>(kV, kV) = Matrix3d::Identity() * 1.0;
+    P_.block<3, 3>(kW, kW) = Matrix3d::Identity() * 4.0;
+  }
+}
+
+void PoseFilter::predict(double dt) {
+  const Matrix3d A = rotation_exp(w_ * dt);
+  R_ = A * R_;
+  c_ += v_ * dt;
+  Matrix12d F = Matrix12d::Identity();
+  F.block<3, 3>(kC, kV) = Matrix3d::Identity() * dt;
+  F.block<3, 3>(kTheta, kTheta) = A;
+  F.block<3, 3>(kTheta, kW) = Matrix3d::Identity() * dt;
+  Matrix12d Q = Matrix12d::Zero();
+  const double dt2 = dt * dt, dt3 = dt2 * dt;
+  const auto add = [&](int pos, int vel, double q) {
+    Q.block<3, 3>(pos, pos) = Matrix3d::Identity() * (q * dt3 / 3.0);
+    Q.block<3, 3>(pos, vel) = Matrix3d::Identity() * (q * dt2 / 2.0);
+    Q.block<3, 3>(vel, pos) = Matrix3d::Identity() * (q * dt2 / 2.0);
+    Q.block<3, 3>(vel, vel) = Matrix3d::Identity() * (q * dt);
+  };
+  add(kC, kV, options_.acceleration_density);
+  add(kTheta, kW, options_.angular_acceleration_density);
+  P_ = F * P_ * F.transpose() + Q;
+}
+
+PoseFilterUpdate PoseFilter::update(double timestamp, const SE3& T_c_w,
+                                    const Matrix6d& information) {
+  PoseFilterUpdate out;
+  out.T_c_w = T_c_w;
+  if (!options_.enabled) return out;
+  const double dt = timestamp - timestamp_;
+  if (!started_ || !(dt > 0.0) || dt > options_.max_gap || !information.allFinite()) {
+    restart(timestamp, T_c_w, information.allFinite() ? information : Matrix6d::Zero(), false);
+    out.restarted = true;
+    return out;
+  }
+  predict(dt);
+
+  const Matrix3d R_m = T_c_w.rotation();
+  const Vector3d c_m = -(R_m.transpose() * T_c_w.translation());
+  Vector6d z;
+  z.head<3>() = c_m - c_;
+  z.tail<3>() = rotation_log(R_m * R_.transpose());
+  const double s2 = options_.measurement_noise_scale * options_.measurement_noise_scale;
+  const Matrix6d H = information_on_centre(information, R_) / s2;
+  // S^-1 = (C P C^T + H^-1)^-1 = H (I + C P C^T H)^-1: no inverse of H, which may be singular.
+  const Matrix12x6d PC = measured_columns(P_);
+  Matrix6d CPC;
+  CPC.topRows<3>() = PC.middleRows<3>(kC);
+  CPC.bottomRows<3>() = PC.middleRows<3>(kTheta);
+  const Matrix6d S_inv = H * (Matrix6d::Identity() + CPC * H).partialPivLu().inverse();
+  out.nis = z.dot(S_inv * z);
+  if (!std::isfinite(out.nis) || out.nis > options_.gate_chi2) {
+    restart(timestamp, T_c_w, information, true);
+    out.restarted = true;
+    if (!std::isfinite(out.nis)) out.nis = 0.0;
+    return out;
+  }
+  const Matrix12x6d K = PC * S_inv;
+  const Eigen::Matrix<double, 12, 1> x = K * z;
+  c_ += x.segment<3>(kC);
+  v_ += x.segment<3>(kV);
+  R_ = rotation_exp(x.segment<3>(kTheta)) * R_;
+  w_ += x.segment<3>(kW);
+  Matrix12d IKC = Matrix12d::Identity();
+  IKC.middleCols<3>(kC) -= K.leftCols<3>();
+  IKC.middleCols<3>(kTheta) -= K.rightCols<3>();
+  P_ = IKC * P_;
+  P_ = 0.5 * (P_ + P_.transpose()).eval();
+  timestamp_ = timestamp;
+  out.T_c_w = pose_of(R_, c_);
+  return out;
+}
+
+void PoseFilter::move_world(const SE3& W) {
+  if (!started_) return;
+  const Matrix3d R_W = W.rotation();
+  c_ = W * c_;
+  v_ = R_W * v_;
+  R_ = R_ * R_W.transpose();
+  Matrix12d J = Matrix12d::Identity();
+  J.block<3, 3>(kC, kC) = R_W;
+  J.block<3, 3>(kV, kV) = R_W;
+  P_ = J * P_ * J.transpose();
+}
+
+}  // namespace mcslam::optim
