@@ -1,6 +1,7 @@
 #include "mcslam/optim/pose_filter.hpp"
 
 #include <Eigen/Dense>
+#include <algorithm>
 #include <cmath>
 
 namespace mcslam::optim {
@@ -15,6 +16,10 @@ std::optional<std::string> PoseFilterOptions::check() const {
     return "pose_filter.measurement_noise_scale must be a positive number";
   if (!positive(gate_chi2)) return "pose_filter.gate_chi2 must be a positive number";
   if (!positive(max_gap)) return "pose_filter.max_gap must be a positive number of seconds";
+  if (!(std::isfinite(adaptive_memory) && adaptive_memory >= 0.0))
+    return "pose_filter.adaptive_memory must be a number of seconds >= 0 (0: fixed densities)";
+  if (!(std::isfinite(max_liveliness) && max_liveliness >= 1.0))
+    return "pose_filter.max_liveliness must be a number >= 1";
   return std::nullopt;
 }
 
@@ -62,6 +67,8 @@ void PoseFilter::restart(double timestamp, const SE3& T_c_w, const Matrix6d& inf
   if (!keep_velocities) {
     v_.setZero();
     w_.setZero();
+    liveliness_ = 1.0;
+    mean_nis_ = 6.0;
   }
   started_ = true;
   timestamp_ = timestamp;
@@ -87,6 +94,16 @@ void PoseFilter::restart(double timestamp, const SE3& T_c_w, const Matrix6d& inf
   }
 }
 
+void PoseFilter::adapt(double dt, double nis) {
+  if (!(options_.adaptive_memory > 0.0) || !std::isfinite(nis)) return;
+  // Covariance matching: the innovations' recent mean against the 6 the model expects. A camera
+  // livelier than the densities gives larger innovations, and the densities follow (never below
+  // the settings', so that a calm camera keeps them); one bad frame counts at most 4 times 6.
+  const double keep = std::exp(-dt / options_.adaptive_memory);
+  mean_nis_ = keep * mean_nis_ + (1.0 - keep) * std::min(nis, 24.0);
+  liveliness_ = std::clamp(liveliness_ * mean_nis_ / 6.0, 1.0, options_.max_liveliness);
+}
+
 void PoseFilter::predict(double dt) {
   const Matrix3d A = rotation_exp(w_ * dt);
   R_ = A * R_;
@@ -103,8 +120,8 @@ void PoseFilter::predict(double dt) {
     Q.block<3, 3>(vel, pos) = Matrix3d::Identity() * (q * dt2 / 2.0);
     Q.block<3, 3>(vel, vel) = Matrix3d::Identity() * (q * dt);
   };
-  add(kC, kV, options_.acceleration_density);
-  add(kTheta, kW, options_.angular_acceleration_density);
+  add(kC, kV, options_.acceleration_density * liveliness_);
+  add(kTheta, kW, options_.angular_acceleration_density * liveliness_);
   P_ = F * P_ * F.transpose() + Q;
 }
 
@@ -135,6 +152,7 @@ PoseFilterUpdate PoseFilter::update(double timestamp, const SE3& T_c_w,
   CPC.bottomRows<3>() = PC.middleRows<3>(kTheta);
   const Matrix6d S_inv = H * (Matrix6d::Identity() + CPC * H).partialPivLu().inverse();
   out.nis = z.dot(S_inv * z);
+  adapt(dt, out.nis);
   if (!std::isfinite(out.nis) || out.nis > options_.gate_chi2) {
     restart(timestamp, T_c_w, information, true);
     out.restarted = true;

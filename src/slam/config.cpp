@@ -123,6 +123,8 @@ std::vector<Field> mcslam_fields(PinholeCamera& c, SystemOptions& o) {
       {"tracker.pose_filter.measurement_noise_scale", &t.pose_filter.measurement_noise_scale},
       {"tracker.pose_filter.gate_chi2", &t.pose_filter.gate_chi2},
       {"tracker.pose_filter.max_gap", &t.pose_filter.max_gap},
+      {"tracker.pose_filter.adaptive_memory", &t.pose_filter.adaptive_memory},
+      {"tracker.pose_filter.max_liveliness", &t.pose_filter.max_liveliness},
       {"dynamics.enabled", &t.dynamics.enabled},
       {"dynamics.epipolar_threshold", &t.dynamics.epipolar_threshold},
       {"dynamics.background_factor", &t.dynamics.background_factor},

@@ -4,6 +4,7 @@
 
 #include <Eigen/Dense>
 #include <cmath>
+#include <cstdio>
 #include <random>
 #include <vector>
 
@@ -41,7 +42,14 @@ struct Noisy {
   std::vector<double> times;
 };
 
-Noisy simulate(int frames, unsigned seed, const Matrix6d& cov) {
+/// A camera swung to and fro: 5 cm at 2 Hz sideways (up to 7.9 m/s^2), far livelier than
+/// truth_at's and than the default densities allow.
+SE3 swung_at(double t) {
+  const Eigen::Vector3d c(0.05 * std::sin(4.0 * M_PI * t), 0.0, 0.1 * t);
+  return SE3(Eigen::Matrix3d::Identity(), c).inverse();
+}
+
+Noisy simulate(int frames, unsigned seed, const Matrix6d& cov, SE3 (*path)(double) = truth_at) {
   std::mt19937 rng(seed);
   std::normal_distribution<double> normal(0.0, 1.0);
   const Matrix6d L = cov.llt().matrixL();
@@ -51,8 +59,8 @@ Noisy simulate(int frames, unsigned seed, const Matrix6d& cov) {
     Vector6d n;
     for (int i = 0; i < 6; ++i) n(i) = normal(rng);
     out.times.push_back(t);
-    out.truth.push_back(truth_at(t));
-    out.measured.push_back(SE3::exp(L * n) * truth_at(t));
+    out.truth.push_back(path(t));
+    out.measured.push_back(SE3::exp(L * n) * path(t));
   }
   return out;
 }
@@ -137,6 +145,35 @@ TEST(PoseFilter, TakesTheLooseDirectionFromTheMotionAndKeepsTheRest) {
   EXPECT_LT(roll_error, 0.1 * M_PI / 180.0);
 }
 
+// A camera swung faster than the densities allow: the innovations grow, the densities follow
+// them, and the poses lag less behind the camera. Measured: step error 8.55 mm measured, 11.94
+// fixed, 7.59 adaptive; position error 11.27 fixed, 7.99 adaptive (the measurements' own 5.81:
+// matching the innovations' mean to 6 leaves some lag).
+TEST(PoseFilter, TheDensitiesFollowACameraLivelierThanTheyAllow) {
+  const Matrix6d cov = valley_covariance();
+  const Noisy run = simulate(300, 13, cov, swung_at);
+  PoseFilterOptions fixed_options = exact();
+  fixed_options.adaptive_memory = 0.0;
+  PoseFilter adaptive(exact()), fixed(fixed_options);
+  std::vector<SE3> adapted, kept;
+  for (std::size_t k = 0; k < run.measured.size(); ++k) {
+    adapted.push_back(adaptive.update(run.times[k], run.measured[k], cov.inverse()).T_c_w);
+    kept.push_back(fixed.update(run.times[k], run.measured[k], cov.inverse()).T_c_w);
+  }
+  const double measured = step_error_rms(run.measured, run.truth, 30);
+  const double with_fixed = step_error_rms(kept, run.truth, 30);
+  const double with_adapted = step_error_rms(adapted, run.truth, 30);
+  const double lag_fixed = position_error_rms(kept, run.truth, 30);
+  const double lag_adapted = position_error_rms(adapted, run.truth, 30);
+  std::printf(
+      "step error: measured %.2f mm, fixed %.2f mm, adaptive %.2f mm; position error "
+      "fixed %.2f mm, adaptive %.2f mm, measured %.2f mm\n",
+      measured * 1e3, with_fixed * 1e3, with_adapted * 1e3, lag_fixed * 1e3, lag_adapted * 1e3,
+      position_error_rms(run.measured, run.truth, 30) * 1e3);
+  EXPECT_LT(with_adapted, measured);
+  EXPECT_LT(lag_adapted, 0.8 * lag_fixed);
+}
+
 TEST(PoseFilter, AJumpTheMotionCannotExplainRestartsAtTheMeasurement) {
   const Matrix6d cov = valley_covariance();
   const Noisy run = simulate(60, 3, cov);
@@ -217,6 +254,12 @@ TEST(PoseFilterOptions, EachBadValueIsNamed) {
   o = {};
   o.max_gap = -0.1;
   EXPECT_NE(o.check()->find("max_gap"), std::string::npos);
+  o = {};
+  o.adaptive_memory = -1.0;
+  EXPECT_NE(o.check()->find("adaptive_memory"), std::string::npos);
+  o = {};
+  o.max_liveliness = 0.5;
+  EXPECT_NE(o.check()->find("max_liveliness"), std::string::npos);
 }
 
 }  // namespace

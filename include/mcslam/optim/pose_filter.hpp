@@ -33,7 +33,8 @@ struct PoseFilterOptions {
   /// Off (the default): the filter returns each measurement as it is (the pose of the frame's own
   /// observations). Its fixed densities suit a handheld camera (online RPE over one frame 8.8 ->
   /// 5.6 mm on freiburg1_rpy, 10.0 -> 3.4 mm on Bonn crowd part 1) but not a faster one: the
-  /// synthetic room at 2.5 times the usual speed goes from 2.1 to 8.8 mm (docs/cli.md).
+  /// synthetic room at 2.5 times the usual speed goes from 2.1 to 3.0 mm, its online ATE from
+  /// 3.4 to 10.6 mm, even with adaptive densities (docs/cli.md).
   bool enabled = false;
   /// q_p, spectral density of the camera centre's acceleration per axis (m^2/s^3). The ground
   /// truth of the handheld sequences at hand measures 0.006 (freiburg1_rpy) and 0.003 (Bonn crowd
@@ -58,6 +59,13 @@ struct PoseFilterOptions {
   double gate_chi2 = 22.46;
   /// A longer time between two measurements restarts the filter (seconds).
   double max_gap = 0.5;
+  /// Adaptive densities (covariance matching): the recent mean of the normalised innovation
+  /// squared, averaged over this many seconds, against the 6 a consistent filter gives; when the
+  /// camera moves livelier than the densities allow (the mean above 6), both densities are
+  /// multiplied by mean / 6 until it is 6 again, never below the settings' values. 0: fixed.
+  double adaptive_memory = 0.5;
+  /// The most the densities may be multiplied by.
+  double max_liveliness = 1000.0;
 
   std::optional<std::string> check() const;
 };
@@ -92,6 +100,7 @@ class PoseFilter {
   void restart(double timestamp, const SE3& T_c_w, const Matrix6d& information,
                bool keep_velocities);
   void predict(double dt);
+  void adapt(double dt, double nis);
 
   PoseFilterOptions options_;
   bool started_ = false;
@@ -101,6 +110,8 @@ class PoseFilter {
   Eigen::Matrix3d R_ = Eigen::Matrix3d::Identity();  // R_c_w
   Eigen::Vector3d w_ = Eigen::Vector3d::Zero();      // angular velocity, camera frame (left)
   Matrix12d P_ = Matrix12d::Identity();
+  double liveliness_ = 1.0;  // the densities' multiplier
+  double mean_nis_ = 6.0;    // the recent innovations' mean
 };
 
 }  // namespace mcslam::optim
