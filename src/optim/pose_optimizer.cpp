@@ -173,8 +173,6 @@ PoseOptimizationResult optimize_pose(const PinholeCamera& camera, const SE3& ini
       break;
     }
     result.information = solved.information;
-    result.residuals = solved.residuals;
-    result.final_cost = solved.final_cost;
     classify(camera, problem, block_to_pose(pose), options, result);
     // Too few inliers of all kinds together to go on rejecting outliers. Constraint inliers are
     // evidence for the classification too (the landmark minimum is enforced above).

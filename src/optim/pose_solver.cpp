@@ -90,7 +90,6 @@ PoseSolverSummary solve_pose(const std::vector<PoseTerm>& terms, double* pose,
     if (blocks.size() != 1 || blocks[0] != kPoseSize || term.cost->num_residuals() < 1 ||
         term.cost->num_residuals() > kMaxPoseResidual)
       return summary;
-    summary.residuals += term.cost->num_residuals();
   }
   Linearisation at;
   if (!evaluate(terms, pose, true, at)) return summary;

@@ -349,11 +349,7 @@ void Tracker::accept(const Frame& frame, const Associations& assoc, const SE3& T
   // pose, so that the filter never feeds back into what it filters. A relocalised pose is a jump
   // the motion model must not smooth away.
   if (out.relocalised) pose_filter_.reset();
-  const optim::PoseFilterUpdate filtered =
-      pose_filter_.update(frame.timestamp, T_c_w, pose_information_);
-  out.T_c_w_online = filtered.T_c_w;
-  out.filter_nis = filtered.nis;
-  out.filter_restarted = filtered.restarted;
+  out.T_c_w_online = pose_filter_.update(frame.timestamp, T_c_w, pose_information_).T_c_w;
   if (const auto T_last = last_frame_pose(); T_last && state_ == TrackingState::kOk) {
     previous_velocity_ = velocity_;
     previous_velocity_dt_ = velocity_dt_;

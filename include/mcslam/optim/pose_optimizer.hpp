@@ -79,12 +79,8 @@ struct PoseOptimizationResult {
   /// Point observations left out of a round because the point was behind the camera (or within
   /// 1 micrometre of its centre) at that round's start pose; they are outliers of that round.
   int behind_camera = 0;
-  /// The last round's J^T W J on the pose's tangent (se3_manifold.hpp), its rows and its final
-  /// cost (0.5 * sum of squared whitened residuals): the pose's information and the data to
-  /// check its scale.
+  /// The last round's J^T W J on the pose's tangent (se3_manifold.hpp): the pose's information.
   Matrix6d information = Matrix6d::Zero();
-  int residuals = 0;
-  double final_cost = 0.0;
 };
 
 /// Optimises the pose against points, lines, planes and constrained moving-object features

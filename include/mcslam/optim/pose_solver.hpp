@@ -45,8 +45,6 @@ struct PoseSolverSummary {
   /// J^T W J on the tangent at the last pose the solver linearised at (the final pose, or the one
   /// before a last step too small to count): the pose's information under the terms' weights.
   Matrix6d information = Matrix6d::Zero();
-  /// Rows of all terms together.
-  int residuals = 0;
 };
 
 /// Minimises 0.5 * sum rho(|r_i|^2) over the pose block `pose` (7 doubles, updated in place).

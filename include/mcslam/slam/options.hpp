@@ -119,8 +119,9 @@ struct TrackerOptions {
   double on_plane_distance = 0.02;
 
   optim::PoseOptimizerOptions pose;
-  /// The frame's pose fused with the motion model (optim/pose_filter.hpp): what process()
-  /// returns, trajectory_online.txt, the keyframes and the next frame's prediction.
+  /// The online pose (what process() returns, trajectory_online.txt): the frame's pose fused with
+  /// the motion model (optim/pose_filter.hpp) when enabled. Tracking, keyframes and the final
+  /// trajectory always go on from the frame's own pose.
   optim::PoseFilterOptions pose_filter;
   /// Dynamic objects (Algorithm 1) and moving constraints (Algorithm 2), when frames carry
   /// detections.

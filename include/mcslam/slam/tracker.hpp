@@ -90,8 +90,6 @@ struct TrackingOutcome {
   /// The pose fused with the motion model (tracker.pose_filter; T_c_w when it is off): what
   /// process() returns and trajectory_online.txt holds.
   SE3 T_c_w_online;
-  double filter_nis = 0.0;                 // its normalised innovation squared (0 on a restart)
-  bool filter_restarted = false;           // the filter started again at T_c_w
   map::KeyFrameId reference = map::kNoId;  // keyframe the pose is stored relative to
   SE3 T_c_ref;                             // pose relative to that keyframe
   int matches = 0;                         // points matched (landmarks and depth points)
