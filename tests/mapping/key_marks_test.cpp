@@ -1,0 +1,56 @@
+// The per-keyframe voxel marks of the occupancy map's integration, against std::map.
+#include "mapping/key_marks.hpp"
+
+#include <gtest/gtest.h>
+
+#include <map>
+#include <random>
+#include <tuple>
+
+namespace mcslam::mapping::detail {
+namespace {
+
+using Key = std::tuple<int, int, int>;
+
+octomap::OcTreeKey key_of(const Key& k) {
+  return octomap::OcTreeKey(static_cast<octomap::key_type>(std::get<0>(k)),
+                            static_cast<octomap::key_type>(std::get<1>(k)),
+                            static_cast<octomap::key_type>(std::get<2>(k)));
+}
+
+TEST(KeyMarks, HoldsTheSameRolesAsAMapAcrossGrowthAndClears) {
+  KeyMarks marks;
+  std::mt19937 rng(7);
+  // Keys around the octree's centre (32768), as a keyframe's voxels are, some marked many times.
+  std::uniform_int_distribution<int> coord(32768 - 60, 32768 + 60);
+  std::uniform_int_distribution<int> role_bit(0, 3);
+  for (int round = 0; round < 3; ++round) {
+    std::map<Key, std::uint8_t> expected;
+    std::vector<Key> order;
+    const int n = round == 1 ? 200000 : 3000;  // the second round grows the table
+    for (int i = 0; i < n; ++i) {
+      const Key k{coord(rng), coord(rng), coord(rng)};
+      const auto role = static_cast<std::uint8_t>(1u << role_bit(rng));
+      auto [it, inserted] = expected.emplace(k, 0);
+      if (inserted) order.push_back(k);
+      const bool is_new = (it->second & role) == 0;
+      it->second |= role;
+      const KeyMarks::Marked m = marks.mark(key_of(k), role);
+      ASSERT_EQ(m.added, is_new) << "round " << round << ", mark " << i;
+      ASSERT_EQ(marks.entries()[m.entry].key, key_of(k));
+    }
+    ASSERT_EQ(marks.entries().size(), expected.size());
+    for (std::size_t e = 0; e < order.size(); ++e) {  // first-marked order, the roles of each
+      EXPECT_EQ(marks.entries()[e].key, key_of(order[e]));
+      EXPECT_EQ(marks.entries()[e].roles, expected[order[e]]);
+      EXPECT_EQ(marks.roles(key_of(order[e])), expected[order[e]]);
+    }
+    EXPECT_EQ(marks.roles(key_of({1, 2, 3})), 0);  // never marked
+    marks.clear();
+    EXPECT_TRUE(marks.entries().empty());
+    EXPECT_EQ(marks.roles(key_of(order.front())), 0) << "a cleared key is unmarked";
+  }
+}
+
+}  // namespace
+}  // namespace mcslam::mapping::detail
