@@ -386,6 +386,244 @@ void refine_fld_candidates(const cv::Mat& image, const std::vector<cv::Vec4f>& s
   }
 }
 
+/// Depth-fit tolerance (metres) at depth z: the sensor's noise grows with z^2.
+double fit_tolerance_at(const LineOptions& options, double z) {
+  return std::max(options.fit_tolerance, options.fit_tolerance_per_metre * z * z);
+}
+
+/// The depths of the pixels across a segment at one sample point, kSideOffset pixels to each
+/// side, and which of them belong to the foreground surface.
+struct DepthProfile {
+  /// Depth by offset (index o + kSideOffset); 0 where missing.
+  std::array<double, 2 * kSideOffset + 1> depth{};
+  /// Signed distance of each pixel centre from the segment.
+  std::array<double, 2 * kSideOffset + 1> offset{};
+  /// The nearest depth (infinite when no pixel has depth).
+  double nearest = std::numeric_limits<double>::infinity();
+  /// Depths more than this behind the nearest one are background.
+  double jump = 0.0;
+
+  /// The depth at offset o when it is a foreground pixel, else 0. Pixels beyond a depth jump
+  /// behind the nearest one are background: the segment belongs to the foreground surface (an
+  /// occluding contour is an edge of the occluder).
+  double foreground(int o) const {
+    if (o < -kSideOffset || o > kSideOffset) return 0.0;
+    const double z = depth[static_cast<std::size_t>(o + kSideOffset)];
+    return z > 0.0 && z - nearest <= jump ? z : 0.0;
+  }
+};
+
+/// Depths across the segment (along `normal`) at its point uv, with the signed distance of their
+/// pixel centres from the segment, the nearest depth and the jump threshold.
+DepthProfile depth_across(const cv::Mat& depth, const Eigen::Vector2d& uv,
+                          const Eigen::Vector2d& normal, const LineOptions& options) {
+  DepthProfile profile;
+  for (int o = -kSideOffset; o <= kSideOffset; ++o) {
+    const Eigen::Vector2d q = uv + o * normal;
+    const long x = std::lround(q.x());
+    const long y = std::lround(q.y());
+    double z = 0.0;
+    if (x >= 0 && y >= 0 && x < depth.cols && y < depth.rows)
+      z = depth.at<float>(static_cast<int>(y), static_cast<int>(x));
+    if (!std::isfinite(z) || z <= 0.0) z = 0.0;
+    const auto index = static_cast<std::size_t>(o + kSideOffset);
+    profile.depth[index] = z;
+    profile.offset[index] = normal.dot(Eigen::Vector2d(double(x), double(y)) - uv);
+    if (z > 0.0) profile.nearest = std::min(profile.nearest, z);
+  }
+  if (std::isfinite(profile.nearest))
+    profile.jump = std::max(2.0 * fit_tolerance_at(options, profile.nearest),
+                            kRelativeDepthJump * profile.nearest);
+  return profile;
+}
+
+/// A pixel across the segment: its offset and depth.
+struct ProfilePixel {
+  int offset = 0;
+  double z = 0.0;
+};
+
+/// Of the foreground pixels, the one closest to the segment (the nearer one on a tie of
+/// distance): the nearest depth alone would be biased towards the camera on surfaces seen at a
+/// grazing angle. z is 0 when there is none.
+ProfilePixel closest_foreground(const DepthProfile& profile) {
+  ProfilePixel chosen;
+  for (int r = 0; r <= kSideOffset && chosen.z == 0.0; ++r) {
+    const double minus = profile.foreground(-r);
+    const double plus = profile.foreground(r);
+    if (minus > 0.0 && (plus == 0.0 || minus <= plus)) {
+      chosen = {-r, minus};
+    } else if (plus > 0.0) {
+      chosen = {r, plus};
+    }
+  }
+  return chosen;
+}
+
+/// Depth slope across the segment: a line fit z = a + b t over the run of foreground pixels that
+/// starts at `from` and leaves the segment by `step` (several pixels average the depth noise).
+/// False when the run is too short or degenerate.
+bool fit_side(const DepthProfile& profile, int from, int step, double& a, double& b) {
+  double st = 0.0, sz = 0.0, stt = 0.0, stz = 0.0;
+  int count = 0;
+  for (int o = from; profile.foreground(o) > 0.0; o += step) {
+    const double t = profile.offset[static_cast<std::size_t>(o + kSideOffset)];
+    const double zo = profile.foreground(o);
+    st += t;
+    sz += zo;
+    stt += t * t;
+    stz += t * zo;
+    ++count;
+  }
+  const double det = count * stt - st * st;
+  if (count < 2 || !(det > 1e-9)) return false;
+  b = (count * stz - st * sz) / det;
+  a = (sz - b * st) / count;
+  return true;
+}
+
+/// The segment's depth at a sample from the depths across it, or nothing when the sample has no
+/// reliable depth.
+std::optional<double> sample_depth(const DepthProfile& profile, const LineOptions& options) {
+  if (!std::isfinite(profile.nearest)) return std::nullopt;
+  const ProfilePixel chosen = closest_foreground(profile);
+  double z = chosen.z;
+  double slope = 0.0;
+  if (chosen.offset != 0) {
+    // The nearest foreground pixel is off the segment (missing depth at the contour, or
+    // colour and depth a pixel apart): extrapolate its surface to the segment when that
+    // changes the depth by more than the noise (~ a third of the tolerance); otherwise the
+    // extrapolation would only amplify the noise.
+    double a = 0.0;
+    double b = 0.0;
+    if (fit_side(profile, chosen.offset, chosen.offset > 0 ? 1 : -1, a, b)) {
+      slope = std::abs(b);
+      if (a > 0.0 && std::abs(a - z) > fit_tolerance_at(options, z) / 3.0) z = a;
+    }
+  } else {
+    for (int step : {-1, 1}) {
+      double a = 0.0;
+      double b = 0.0;
+      if (fit_side(profile, 0, step, a, b)) slope = std::max(slope, std::abs(b));
+    }
+  }
+  // On a surface seen at a grazing angle, LSD's own error in the segment position (about half
+  // a pixel) makes a depth error beyond the tolerance: such samples are dropped.
+  if (slope * kSegmentPositionError > fit_tolerance_at(options, z)) return std::nullopt;
+  return z;
+}
+
+/// 3D samples of a segment and the square of each one's fit tolerance.
+struct DepthSamples {
+  std::vector<Eigen::Vector3d> points;
+  std::vector<double> tolerance2;
+};
+
+/// Samples the depth along the segment s + t d (t in [kEndMargin, 1 - kEndMargin]). Samples are
+/// back-projected at their position on the segment (not at the pixel whose depth they took), so
+/// that all of them lie in the plane through the camera centre and the 2D line.
+DepthSamples sample_segment(const PinholeCamera& camera, const cv::Mat& depth,
+                            const Eigen::Vector2d& s, const Eigen::Vector2d& d,
+                            const Eigen::Vector2d& normal, const LineOptions& options) {
+  const int n = options.depth_samples;
+  DepthSamples samples;
+  samples.points.reserve(static_cast<std::size_t>(n));
+  samples.tolerance2.reserve(static_cast<std::size_t>(n));
+  for (int k = 0; k < n; ++k) {
+    const double t = kEndMargin + (1.0 - 2.0 * kEndMargin) * k / (n - 1.0);
+    const Eigen::Vector2d uv = s + t * d;
+    const std::optional<double> z = sample_depth(depth_across(depth, uv, normal, options), options);
+    if (!z) continue;
+    const double tolerance = fit_tolerance_at(options, *z);
+    samples.points.push_back(camera.unproject(uv, *z));
+    samples.tolerance2.push_back(tolerance * tolerance);
+  }
+  return samples;
+}
+
+/// RANSAC over sample pairs, exhaustive and in a fixed order (deterministic), scored by the
+/// truncated squared residual (MSAC). Most segments fit with the first, widest pair: stops as
+/// soon as a hypothesis explains every sample. Nothing when no pair gives a line.
+std::optional<Line3> ransac_line(const DepthSamples& samples) {
+  const std::vector<Eigen::Vector3d>& points = samples.points;
+  const int valid = static_cast<int>(points.size());
+  Line3 best_line;
+  double best_cost = std::numeric_limits<double>::infinity();
+  const int min_gap = std::max(1, valid / kMinPairGapDivisor);
+  bool done = false;
+  for (int gap = valid - 1; gap >= min_gap && !done; --gap) {
+    for (int i = 0; i + gap < valid && !done; ++i) {
+      const Eigen::Vector3d& a = points[static_cast<std::size_t>(i)];
+      const Eigen::Vector3d dir = points[static_cast<std::size_t>(i + gap)] - a;
+      const double dir_norm = dir.norm();
+      if (!(dir_norm > 1e-9)) continue;
+      const Line3 hypothesis{a, dir / dir_norm};
+      double cost = 0.0;
+      int inliers = 0;
+      for (int k = 0; k < valid && cost < best_cost; ++k) {
+        const auto ks = static_cast<std::size_t>(k);
+        const double r = hypothesis.squared_distance(points[ks]) / samples.tolerance2[ks];
+        if (r < 1.0) ++inliers;
+        cost += std::min(r, 1.0);
+      }
+      if (cost < best_cost) {
+        best_cost = cost;
+        best_line = hypothesis;
+        done = inliers == valid;
+      }
+    }
+  }
+  if (!std::isfinite(best_cost)) return std::nullopt;
+  return best_line;
+}
+
+/// A line fitted to depth samples, with its inlier flags and count.
+struct LineFit {
+  Line3 line;
+  std::vector<char> inlier;
+  int inliers = 0;
+};
+
+/// Refits `initial` on its inliers by PCA, then once more on the inliers of the refined line.
+/// Nothing when a PCA fails.
+std::optional<LineFit> refine_line(const Line3& initial, const DepthSamples& samples) {
+  const std::vector<Eigen::Vector3d>& points = samples.points;
+  LineFit fit{initial, std::vector<char>(points.size(), 0), 0};
+  fit.inliers = mark_inliers(fit.line, points, samples.tolerance2, fit.inlier);
+  for (int iteration = 0; iteration < 2; ++iteration) {
+    Line3 refined;
+    if (!pca_line(points, fit.inlier, refined)) return std::nullopt;
+    std::vector<char> next(points.size(), 0);
+    const int count = mark_inliers(refined, points, samples.tolerance2, next);
+    // Keep the refined line unless it lost inliers (the PCA can drift on a two-layer set).
+    if (count < fit.inliers) break;
+    fit.line = refined;
+    const bool same = next == fit.inlier;
+    fit.inlier.swap(next);
+    fit.inliers = count;
+    if (same) break;
+  }
+  return fit;
+}
+
+/// The 3D endpoints of the segment s-e on the fitted line: where the viewing rays of the 2D
+/// endpoints pass closest to the 3D line, taken on the rays so that they project exactly onto
+/// the 2D endpoints. False when a ray misses the line or is nearly parallel to it.
+bool line_endpoints(const PinholeCamera& camera, const Eigen::Vector2d& s, const Eigen::Vector2d& e,
+                    const LineFit& fit, const DepthSamples& samples, LineFeature& line) {
+  double max_tol2 = 0.0;
+  for (std::size_t k = 0; k < samples.points.size(); ++k)
+    if (fit.inlier[k]) max_tol2 = std::max(max_tol2, samples.tolerance2[k]);
+  const double max_miss = 2.0 * std::sqrt(max_tol2);
+  const double min_sin = std::sin(kMinRayAngleDeg * std::numbers::pi / 180.0);
+  const auto start_c = ray_line_point(camera.unproject(s, 1.0), fit.line, min_sin, max_miss);
+  const auto end_c = ray_line_point(camera.unproject(e, 1.0), fit.line, min_sin, max_miss);
+  if (!start_c || !end_c) return false;
+  line.start_c = *start_c;
+  line.end_c = *end_c;
+  return true;
+}
+
 }  // namespace
 
 const cv::Mat* LineExtractor::Impl::detect(const cv::Mat& gray, const cv::Size& size) {
@@ -459,170 +697,15 @@ bool LineExtractor::fit_depth(const PinholeCamera& camera, const cv::Mat& depth,
   if (!(length >= 1.0)) return false;
   const Eigen::Vector2d normal(-d.y() / length, d.x() / length);
 
-  // Samples back-projected at their position on the segment (not at the pixel whose depth they
-  // took), so that all of them lie in the plane through the camera centre and the 2D line.
-  const int n = options_.depth_samples;
-  auto tolerance = [&](double z) {
-    return std::max(options_.fit_tolerance, options_.fit_tolerance_per_metre * z * z);
-  };
-  std::vector<Eigen::Vector3d> points;
-  std::vector<double> tolerance2;
-  points.reserve(static_cast<std::size_t>(n));
-  tolerance2.reserve(static_cast<std::size_t>(n));
-  for (int k = 0; k < n; ++k) {
-    const double t = kEndMargin + (1.0 - 2.0 * kEndMargin) * k / (n - 1.0);
-    const Eigen::Vector2d uv = s + t * d;
-    // Depths across the segment (by offset) with the signed distance of their pixel centres
-    // from the segment, and the nearest depth.
-    std::array<double, 2 * kSideOffset + 1> across{};
-    std::array<double, 2 * kSideOffset + 1> offset{};
-    double nearest = std::numeric_limits<double>::infinity();
-    for (int o = -kSideOffset; o <= kSideOffset; ++o) {
-      const Eigen::Vector2d q = uv + o * normal;
-      const long x = std::lround(q.x());
-      const long y = std::lround(q.y());
-      double z = 0.0;
-      if (x >= 0 && y >= 0 && x < depth.cols && y < depth.rows)
-        z = depth.at<float>(static_cast<int>(y), static_cast<int>(x));
-      if (!std::isfinite(z) || z <= 0.0) z = 0.0;
-      const auto index = static_cast<std::size_t>(o + kSideOffset);
-      across[index] = z;
-      offset[index] = normal.dot(Eigen::Vector2d(double(x), double(y)) - uv);
-      if (z > 0.0) nearest = std::min(nearest, z);
-    }
-    if (!std::isfinite(nearest)) continue;
-    // Pixels beyond a depth jump behind the nearest one are background: the segment belongs to
-    // the foreground surface (an occluding contour is an edge of the occluder). Of the
-    // foreground pixels, the one closest to the segment: the nearest depth alone would be biased
-    // towards the camera on surfaces seen at a grazing angle.
-    const double jump = std::max(2.0 * tolerance(nearest), kRelativeDepthJump * nearest);
-    auto foreground = [&](int o) {
-      if (o < -kSideOffset || o > kSideOffset) return 0.0;
-      const double z = across[static_cast<std::size_t>(o + kSideOffset)];
-      return z > 0.0 && z - nearest <= jump ? z : 0.0;
-    };
-    int chosen = 0;
-    double z = 0.0;
-    for (int r = 0; r <= kSideOffset && z == 0.0; ++r) {
-      const double minus = foreground(-r);
-      const double plus = foreground(r);
-      if (minus > 0.0 && (plus == 0.0 || minus <= plus)) {
-        chosen = -r;
-        z = minus;
-      } else if (plus > 0.0) {
-        chosen = r;
-        z = plus;
-      }
-    }
-    // Depth slope across the segment: a line fit z = a + b t over the run of foreground pixels
-    // that starts at `from` and leaves the segment (several pixels average the depth noise).
-    auto side_fit = [&](int from, int step, double& a, double& b) {
-      double st = 0.0, sz = 0.0, stt = 0.0, stz = 0.0;
-      int count = 0;
-      for (int o = from; foreground(o) > 0.0; o += step) {
-        const double t = offset[static_cast<std::size_t>(o + kSideOffset)];
-        const double zo = foreground(o);
-        st += t;
-        sz += zo;
-        stt += t * t;
-        stz += t * zo;
-        ++count;
-      }
-      const double det = count * stt - st * st;
-      if (count < 2 || !(det > 1e-9)) return false;
-      b = (count * stz - st * sz) / det;
-      a = (sz - b * st) / count;
-      return true;
-    };
-    double slope = 0.0;
-    if (chosen != 0) {
-      // The nearest foreground pixel is off the segment (missing depth at the contour, or
-      // colour and depth a pixel apart): extrapolate its surface to the segment when that
-      // changes the depth by more than the noise (~ a third of the tolerance); otherwise the
-      // extrapolation would only amplify the noise.
-      double a = 0.0;
-      double b = 0.0;
-      if (side_fit(chosen, chosen > 0 ? 1 : -1, a, b)) {
-        slope = std::abs(b);
-        if (a > 0.0 && std::abs(a - z) > tolerance(z) / 3.0) z = a;
-      }
-    } else {
-      for (int step : {-1, 1}) {
-        double a = 0.0;
-        double b = 0.0;
-        if (side_fit(0, step, a, b)) slope = std::max(slope, std::abs(b));
-      }
-    }
-    // On a surface seen at a grazing angle, LSD's own error in the segment position (about half
-    // a pixel) makes a depth error beyond the tolerance: such samples are dropped.
-    if (slope * kSegmentPositionError > tolerance(z)) continue;
-    points.push_back(camera.unproject(uv, z));
-    tolerance2.push_back(tolerance(z) * tolerance(z));
-  }
-  const int valid = static_cast<int>(points.size());
-  if (valid < 3 || valid < options_.min_valid_fraction * n) return false;
-
-  // RANSAC over sample pairs, exhaustive and in a fixed order (deterministic), scored by the
-  // truncated squared residual (MSAC). Most segments fit with the first, widest pair: stop as
-  // soon as a hypothesis explains every sample.
-  Line3 best_line;
-  double best_cost = std::numeric_limits<double>::infinity();
-  const int min_gap = std::max(1, valid / kMinPairGapDivisor);
-  bool done = false;
-  for (int gap = valid - 1; gap >= min_gap && !done; --gap) {
-    for (int i = 0; i + gap < valid && !done; ++i) {
-      const Eigen::Vector3d& a = points[static_cast<std::size_t>(i)];
-      const Eigen::Vector3d dir = points[static_cast<std::size_t>(i + gap)] - a;
-      const double dir_norm = dir.norm();
-      if (!(dir_norm > 1e-9)) continue;
-      const Line3 hypothesis{a, dir / dir_norm};
-      double cost = 0.0;
-      int inliers = 0;
-      for (int k = 0; k < valid && cost < best_cost; ++k) {
-        const auto ks = static_cast<std::size_t>(k);
-        const double r = hypothesis.squared_distance(points[ks]) / tolerance2[ks];
-        if (r < 1.0) ++inliers;
-        cost += std::min(r, 1.0);
-      }
-      if (cost < best_cost) {
-        best_cost = cost;
-        best_line = hypothesis;
-        done = inliers == valid;
-      }
-    }
-  }
-  if (!std::isfinite(best_cost)) return false;
-
-  // Refit on the inliers by PCA, then once more on the inliers of the refined line.
-  std::vector<char> inlier(points.size(), 0);
-  int inliers = mark_inliers(best_line, points, tolerance2, inlier);
-  for (int iteration = 0; iteration < 2; ++iteration) {
-    Line3 refined;
-    if (!pca_line(points, inlier, refined)) return false;
-    std::vector<char> next(points.size(), 0);
-    const int count = mark_inliers(refined, points, tolerance2, next);
-    // Keep the refined line unless it lost inliers (the PCA can drift on a two-layer set).
-    if (count < inliers) break;
-    best_line = refined;
-    const bool same = next == inlier;
-    inlier.swap(next);
-    inliers = count;
-    if (same) break;
-  }
-  if (inliers < 2 || inliers < options_.min_inlier_fraction * valid) return false;
-
-  // Endpoints: where the viewing rays of the 2D endpoints pass closest to the 3D line, taken on
-  // the rays so that they project exactly onto the 2D endpoints.
-  double max_tol2 = 0.0;
-  for (std::size_t k = 0; k < points.size(); ++k)
-    if (inlier[k]) max_tol2 = std::max(max_tol2, tolerance2[k]);
-  const double max_miss = 2.0 * std::sqrt(max_tol2);
-  const double min_sin = std::sin(kMinRayAngleDeg * std::numbers::pi / 180.0);
-  const auto start_c = ray_line_point(camera.unproject(s, 1.0), best_line, min_sin, max_miss);
-  const auto end_c = ray_line_point(camera.unproject(e, 1.0), best_line, min_sin, max_miss);
-  if (!start_c || !end_c) return false;
-  line.start_c = *start_c;
-  line.end_c = *end_c;
+  const DepthSamples samples = sample_segment(camera, depth, s, d, normal, options_);
+  const int valid = static_cast<int>(samples.points.size());
+  if (valid < 3 || valid < options_.min_valid_fraction * options_.depth_samples) return false;
+  const std::optional<Line3> initial = ransac_line(samples);
+  if (!initial) return false;
+  const std::optional<LineFit> fit = refine_line(*initial, samples);
+  if (!fit) return false;
+  if (fit->inliers < 2 || fit->inliers < options_.min_inlier_fraction * valid) return false;
+  if (!line_endpoints(camera, s, e, *fit, samples, line)) return false;
   line.has_depth = true;
   return true;
 }

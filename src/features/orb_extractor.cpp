@@ -353,26 +353,19 @@ double covered_share(const cv::Mat& mask, int border) {
   return static_cast<double>(cv::countNonZero(mask(inner))) / static_cast<double>(inner.area());
 }
 
-}  // namespace
-
-OrbFeatures OrbExtractor::extract(const cv::Mat& gray, const cv::Mat& moving_mask) const {
-  OrbFeatures result;
-  if (gray.empty() || gray.type() != CV_8UC1) return result;
-  const cv::Mat moving =
-      moving_mask.size() == gray.size() && moving_mask.type() == CV_8UC1 ? moving_mask : cv::Mat();
-  const int num_levels = options_.num_levels;
-  std::vector<Level> levels(static_cast<std::size_t>(num_levels));
-
-  // Pyramid: each level is a bilinear resize of the previous one. Levels too small to hold a
-  // keypoint (and all after them) stay empty.
+/// Builds the pyramid: each level is a bilinear resize of the previous one. Levels too small to
+/// hold a keypoint (and all after them) stay empty. Returns the number of levels used.
+int build_pyramid(const cv::Mat& gray, const std::vector<double>& inv_scale_factors,
+                  std::vector<Level>& levels) {
   int used_levels = 0;
+  const int num_levels = static_cast<int>(levels.size());
   for (int l = 0; l < num_levels; ++l) {
     Level& level = levels[static_cast<std::size_t>(l)];
     if (l == 0) {
       level.image = gray;
     } else {
       const Level& prev = levels[static_cast<std::size_t>(l - 1)];
-      const double inv_scale = inv_scale_factors_[static_cast<std::size_t>(l)];
+      const double inv_scale = inv_scale_factors[static_cast<std::size_t>(l)];
       const int w = static_cast<int>(std::lround(gray.cols * inv_scale));
       const int h = static_cast<int>(std::lround(gray.rows * inv_scale));
       if (w <= 2 * kBorder || h <= 2 * kBorder) break;
@@ -387,7 +380,95 @@ OrbFeatures OrbExtractor::extract(const cv::Mat& gray, const cv::Mat& moving_mas
     if (level.image.cols <= 2 * kBorder || level.image.rows <= 2 * kBorder) break;
     used_levels = l + 1;
   }
-  if (used_levels == 0) return result;
+  return used_levels;
+}
+
+/// Sets each level's quota: its share of the features (features_per_level), at most its number
+/// of corners; a level with fewer corners than its share hands the remainder to the levels that
+/// have more, in proportion to their shares.
+void assign_quotas(std::vector<Level>& levels, int used_levels,
+                   const std::vector<int>& features_per_level) {
+  int deficit = 0;
+  for (std::size_t l = 0; l < levels.size(); ++l) {
+    Level& level = levels[l];
+    const int base = features_per_level[l];
+    level.quota = std::min(base, static_cast<int>(level.candidates.size()));
+    deficit += base - level.quota;
+  }
+  while (deficit > 0) {
+    long long weight = 0;
+    for (int l = 0; l < used_levels; ++l) {
+      const Level& level = levels[static_cast<std::size_t>(l)];
+      if (static_cast<int>(level.candidates.size()) > level.quota)
+        weight += std::max(1, features_per_level[static_cast<std::size_t>(l)]);
+    }
+    if (weight == 0) break;
+    int given = 0;
+    for (int l = 0; l < used_levels && given < deficit; ++l) {
+      Level& level = levels[static_cast<std::size_t>(l)];
+      const int spare = static_cast<int>(level.candidates.size()) - level.quota;
+      if (spare <= 0) continue;
+      const long long w = std::max(1, features_per_level[static_cast<std::size_t>(l)]);
+      const int share = std::max(1, static_cast<int>(deficit * w / weight));
+      const int add = std::min({share, spare, deficit - given});
+      level.quota += add;
+      given += add;
+    }
+    deficit -= given;
+  }
+}
+
+/// The keypoints (level-0 position, orientation) and descriptors (on the level image blurred
+/// with a 7x7 Gaussian) of the corners `kept` on level l.
+void describe_level(Level& level, int l, const std::vector<Candidate>& kept,
+                    const std::array<int, kHalfPatch + 1>& umax,
+                    const std::array<std::array<float, 4>, 256>& pattern) {
+  const std::ptrdiff_t step = static_cast<std::ptrdiff_t>(level.image.step[0]);
+  level.keypoints.resize(kept.size());
+  for (std::size_t i = 0; i < kept.size(); ++i) {
+    const Candidate& c = kept[i];
+    Keypoint& kp = level.keypoints[i];
+    kp.uv = Eigen::Vector2f(static_cast<float>(level.ax * c.x + level.bx),
+                            static_cast<float>(level.ay * c.y + level.by));
+    kp.level = l;
+    kp.response = c.response;
+    kp.angle_deg = patch_orientation(level.image.ptr<std::uint8_t>(c.y) + c.x, step, umax);
+  }
+  cv::Mat blurred;
+  cv::GaussianBlur(level.image, blurred, cv::Size(7, 7), 2.0, 2.0,
+                   cv::BORDER_REFLECT_101 | cv::BORDER_ISOLATED);
+  const std::ptrdiff_t bstep = static_cast<std::ptrdiff_t>(blurred.step[0]);
+  level.descriptors.resize(kept.size());
+  for (std::size_t i = 0; i < kept.size(); ++i) {
+    compute_descriptor(blurred.ptr<std::uint8_t>(kept[i].y) + kept[i].x, bstep,
+                       level.keypoints[i].angle_deg, pattern, level.descriptors[i]);
+  }
+}
+
+/// Every level's keypoints and descriptors, level by level.
+OrbFeatures gather_levels(const std::vector<Level>& levels) {
+  OrbFeatures result;
+  std::size_t total = 0;
+  for (const Level& level : levels) total += level.keypoints.size();
+  result.keypoints.reserve(total);
+  result.descriptors.reserve(total);
+  for (const Level& level : levels) {
+    result.keypoints.insert(result.keypoints.end(), level.keypoints.begin(), level.keypoints.end());
+    result.descriptors.insert(result.descriptors.end(), level.descriptors.begin(),
+                              level.descriptors.end());
+  }
+  return result;
+}
+
+}  // namespace
+
+OrbFeatures OrbExtractor::extract(const cv::Mat& gray, const cv::Mat& moving_mask) const {
+  if (gray.empty() || gray.type() != CV_8UC1) return OrbFeatures{};
+  const cv::Mat moving =
+      moving_mask.size() == gray.size() && moving_mask.type() == CV_8UC1 ? moving_mask : cv::Mat();
+  std::vector<Level> levels(static_cast<std::size_t>(options_.num_levels));
+  const int used_levels = build_pyramid(gray, inv_scale_factors_, levels);
+  if (used_levels == 0) return OrbFeatures{};
   // The moving regions' share of each level's quota (the same share of every level's area).
   const double moving_share =
       options_.moving_density > 0.0
@@ -401,38 +482,7 @@ OrbFeatures OrbExtractor::extract(const cv::Mat& gray, const cv::Mat& moving_mas
       detect_corners(level.image, options_, scratch, level.candidates);
     }
   });
-
-  // Quotas: a level with fewer corners than its share hands the remainder to the levels that
-  // have more, in proportion to their shares.
-  int deficit = 0;
-  for (int l = 0; l < num_levels; ++l) {
-    Level& level = levels[static_cast<std::size_t>(l)];
-    const int base = features_per_level_[static_cast<std::size_t>(l)];
-    level.quota = std::min(base, static_cast<int>(level.candidates.size()));
-    deficit += base - level.quota;
-  }
-  while (deficit > 0) {
-    long long weight = 0;
-    for (int l = 0; l < used_levels; ++l) {
-      const Level& level = levels[static_cast<std::size_t>(l)];
-      if (static_cast<int>(level.candidates.size()) > level.quota)
-        weight += std::max(1, features_per_level_[static_cast<std::size_t>(l)]);
-    }
-    if (weight == 0) break;
-    int given = 0;
-    for (int l = 0; l < used_levels && given < deficit; ++l) {
-      Level& level = levels[static_cast<std::size_t>(l)];
-      const int spare = static_cast<int>(level.candidates.size()) - level.quota;
-      if (spare <= 0) continue;
-      const long long w = std::max(1, features_per_level_[static_cast<std::size_t>(l)]);
-      const int share = std::max(1, static_cast<int>(deficit * w / weight));
-      const int add = std::min({share, spare, deficit - given});
-      level.quota += add;
-      given += add;
-    }
-    deficit -= given;
-  }
-
+  assign_quotas(levels, used_levels, features_per_level_);
   parallel_for(0, used_levels, [&](int first, int last) {
     for (int l = first; l < last; ++l) {
       Level& level = levels[static_cast<std::size_t>(l)];
@@ -440,40 +490,10 @@ OrbFeatures OrbExtractor::extract(const cv::Mat& gray, const cv::Mat& moving_mas
           level.candidates, moving, level.ax, level.bx, level.ay, level.by, moving_share,
           float(kBorder), float(kBorder), float(level.image.cols - kBorder),
           float(level.image.rows - kBorder), level.quota);
-      if (kept.empty()) continue;
-      const std::ptrdiff_t step = static_cast<std::ptrdiff_t>(level.image.step[0]);
-      level.keypoints.resize(kept.size());
-      for (std::size_t i = 0; i < kept.size(); ++i) {
-        const Candidate& c = kept[i];
-        Keypoint& kp = level.keypoints[i];
-        kp.uv = Eigen::Vector2f(static_cast<float>(level.ax * c.x + level.bx),
-                                static_cast<float>(level.ay * c.y + level.by));
-        kp.level = l;
-        kp.response = c.response;
-        kp.angle_deg = patch_orientation(level.image.ptr<std::uint8_t>(c.y) + c.x, step, umax_);
-      }
-      cv::Mat blurred;
-      cv::GaussianBlur(level.image, blurred, cv::Size(7, 7), 2.0, 2.0,
-                       cv::BORDER_REFLECT_101 | cv::BORDER_ISOLATED);
-      const std::ptrdiff_t bstep = static_cast<std::ptrdiff_t>(blurred.step[0]);
-      level.descriptors.resize(kept.size());
-      for (std::size_t i = 0; i < kept.size(); ++i) {
-        compute_descriptor(blurred.ptr<std::uint8_t>(kept[i].y) + kept[i].x, bstep,
-                           level.keypoints[i].angle_deg, pattern_, level.descriptors[i]);
-      }
+      if (!kept.empty()) describe_level(level, l, kept, umax_, pattern_);
     }
   });
-
-  std::size_t total = 0;
-  for (const Level& level : levels) total += level.keypoints.size();
-  result.keypoints.reserve(total);
-  result.descriptors.reserve(total);
-  for (const Level& level : levels) {
-    result.keypoints.insert(result.keypoints.end(), level.keypoints.begin(), level.keypoints.end());
-    result.descriptors.insert(result.descriptors.end(), level.descriptors.begin(),
-                              level.descriptors.end());
-  }
-  return result;
+  return gather_levels(levels);
 }
 
 }  // namespace mcslam::features

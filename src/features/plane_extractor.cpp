@@ -267,6 +267,23 @@ struct Buffers {
   std::vector<float> column_terms;
 };
 
+/// Sums over a cell's valid points for its moments (relative to its first valid point) and for
+/// its inverse-depth normal equations (q: sums of the pixel rays' products, w = 1 / z).
+struct CellSums {
+  double n = 0.0, sx = 0.0, sy = 0.0, sz = 0.0;
+  double sxx = 0.0, sxy = 0.0, sxz = 0.0, syy = 0.0, syz = 0.0, szz = 0.0;
+  double qxx = 0.0, qxy = 0.0, qx = 0.0, qyy = 0.0, qy = 0.0, qxw = 0.0, qyw = 0.0, qw = 0.0;
+  bool jump = false;  ///< a depth discontinuity stopped the sums
+};
+
+/// The regions competing for the pixels of a cell: those of its 3x3 neighbourhood that are
+/// major or large enough, each once, in scan order.
+struct Competitors {
+  std::array<int, 9> regions{};
+  int count = 0;
+  bool any_major = false;  ///< one of them may receive pixels
+};
+
 /// The per-call state of PlaneExtractor::extract.
 class Extraction {
  public:
@@ -354,8 +371,6 @@ class Extraction {
     const int min_side = std::max(2, static_cast<int>(std::ceil(kMinCellSideFraction * cs)));
     cells_.assign(static_cast<std::size_t>(ncx_ * ncy_), Cell{});
     std::vector<float> column_last(static_cast<std::size_t>(cs));
-    const auto tol_min = static_cast<float>(o_.cell_tolerance);
-    const auto tol_z2 = static_cast<float>(o_.cell_tolerance_per_metre);
     for (int cy = 0; cy < ncy_; ++cy) {
       for (int cx = 0; cx < ncx_; ++cx) {
         Cell& c = cell(cy * ncx_ + cx);
@@ -363,92 +378,111 @@ class Extraction {
         c.y0 = cy * cs;
         c.x1 = std::min(width_, c.x0 + cs);
         c.y1 = std::min(height_, c.y0 + cs);
-        const int cw = c.x1 - c.x0;
-        const int ch = c.y1 - c.y0;
-        if (cw < min_side || ch < min_side) continue;
-
-        // Sums relative to the first valid point (centring without a second pass).
-        double x0 = 0.0, y0 = 0.0, z0 = -1.0;
-        for (int v = c.y0; v < c.y1 && z0 < 0.0; ++v) {
-          const float* row = depth_.ptr<float>(v);
-          for (int u = c.x0; u < c.x1; ++u) {
-            if (!valid_depth(row[u])) continue;
-            z0 = row[u];
-            x0 = ray_x_[static_cast<std::size_t>(u)] * z0;
-            y0 = ray_y_[static_cast<std::size_t>(v)] * z0;
-            break;
-          }
-        }
-        if (z0 < 0.0) continue;
-        double n = 0.0, sx = 0.0, sy = 0.0, sz = 0.0;
-        double sxx = 0.0, sxy = 0.0, sxz = 0.0, syy = 0.0, syz = 0.0, szz = 0.0;
-        // Inverse-depth normal equations; y / z is constant along a row, so its sums are formed
-        // once per row.
-        double qxx = 0.0, qxy = 0.0, qx = 0.0, qyy = 0.0, qy = 0.0, qxw = 0.0, qyw = 0.0, qw = 0.0;
-        bool jump = false;
-        std::fill(column_last.begin(), column_last.begin() + cw, 0.0f);
-        for (int v = c.y0; v < c.y1 && !jump; ++v) {
-          const float* row = depth_.ptr<float>(v) + c.x0;
-          const double* rx = ray_x_.data() + c.x0;
-          const double y_per_z = ray_y_[static_cast<std::size_t>(v)];
-          float row_last = 0.0f;
-          double row_n = 0.0, row_x = 0.0, row_w = 0.0;
-          for (int i = 0; i < cw; ++i) {
-            const float z = row[i];
-            if (!valid_depth(z)) continue;
-            // Discontinuity: compare with the previous valid pixel of the row and of the column
-            // (across holes too, since Kinect-like depth blanks both sides of an edge).
-            float& above = column_last[static_cast<std::size_t>(i)];
-            const float limit = kJumpFactor * std::max(tol_min, tol_z2 * z * z);
-            if ((row_last > 0.0f && std::abs(z - row_last) > limit) ||
-                (above > 0.0f && std::abs(z - above) > limit)) {
-              jump = true;
-              break;
-            }
-            row_last = z;
-            above = z;
-            const double x = rx[i] * z - x0;
-            const double y = y_per_z * z - y0;
-            const double dz = z - z0;
-            n += 1.0;
-            sx += x;
-            sy += y;
-            sz += dz;
-            sxx += x * x;
-            sxy += x * y;
-            sxz += x * dz;
-            syy += y * y;
-            syz += y * dz;
-            szz += dz * dz;
-            const double w = 1.0f / z;  // float precision is ample here, and cheaper
-            row_n += 1.0;
-            row_x += rx[i];
-            row_w += w;
-            qxx += rx[i] * rx[i];
-            qxw += rx[i] * w;
-          }
-          qx += row_x;
-          qw += row_w;
-          qxy += y_per_z * row_x;
-          qy += y_per_z * row_n;
-          qyy += y_per_z * y_per_z * row_n;
-          qyw += y_per_z * row_w;
-        }
-        if (jump || n < kMinValidFraction * cw * ch || n < 6.0) continue;
-        const Eigen::Vector3d local_mean = Eigen::Vector3d(sx, sy, sz) / n;
-        c.moments.n = n;
-        c.moments.mean = Eigen::Vector3d(x0, y0, z0) + local_mean;
-        c.moments.scatter << sxx, sxy, sxz, sxy, syy, syz, sxz, syz, szz;
-        c.moments.scatter -= n * local_mean * local_mean.transpose();
-        c.moments.inverse_lhs << qxx, qxy, qx, qxy, qyy, qy, qx, qy, n;
-        c.moments.inverse_rhs << qxw, qyw, qw;
-        c.fit = fit_plane(c.moments, false);
-        const double tolerance = cell_tolerance(c.moments.mean.z());
-        if (c.fit.rms > tolerance) continue;
-        c.planar = true;
-        c.quality = c.fit.rms / tolerance;
+        if (c.x1 - c.x0 < min_side || c.y1 - c.y0 < min_side) continue;
+        compute_cell(c, column_last);
       }
     }
+  }
+
+  /// The point of the first valid pixel of a cell (row by row), false when it has none.
+  bool first_valid_point(const Cell& c, Eigen::Vector3d& origin) const {
+    for (int v = c.y0; v < c.y1; ++v) {
+      const float* row = depth_.ptr<float>(v);
+      for (int u = c.x0; u < c.x1; ++u) {
+        if (!valid_depth(row[u])) continue;
+        const double z0 = row[u];
+        origin = Eigen::Vector3d(ray_x_[static_cast<std::size_t>(u)] * z0,
+                                 ray_y_[static_cast<std::size_t>(v)] * z0, z0);
+        return true;
+      }
+    }
+    return false;
+  }
+
+  /// Sums over a cell's valid points: relative to `origin` for the moments (centring without a
+  /// second pass), and of the inverse-depth normal equations; y / z is constant along a row, so
+  /// its sums are formed once per row. Stops at a depth discontinuity (jump set).
+  /// `column_last` is working space of at least the cell's width.
+  CellSums cell_sums(const Cell& c, const Eigen::Vector3d& origin,
+                     std::vector<float>& column_last) const {
+    const auto tol_min = static_cast<float>(o_.cell_tolerance);
+    const auto tol_z2 = static_cast<float>(o_.cell_tolerance_per_metre);
+    const double x0 = origin.x(), y0 = origin.y(), z0 = origin.z();
+    const int cw = c.x1 - c.x0;
+    CellSums s;
+    std::fill(column_last.begin(), column_last.begin() + cw, 0.0f);
+    for (int v = c.y0; v < c.y1 && !s.jump; ++v) {
+      const float* row = depth_.ptr<float>(v) + c.x0;
+      const double* rx = ray_x_.data() + c.x0;
+      const double y_per_z = ray_y_[static_cast<std::size_t>(v)];
+      float row_last = 0.0f;
+      double row_n = 0.0, row_x = 0.0, row_w = 0.0;
+      for (int i = 0; i < cw; ++i) {
+        const float z = row[i];
+        if (!valid_depth(z)) continue;
+        // Discontinuity: compare with the previous valid pixel of the row and of the column
+        // (across holes too, since Kinect-like depth blanks both sides of an edge).
+        float& above = column_last[static_cast<std::size_t>(i)];
+        const float limit = kJumpFactor * std::max(tol_min, tol_z2 * z * z);
+        if ((row_last > 0.0f && std::abs(z - row_last) > limit) ||
+            (above > 0.0f && std::abs(z - above) > limit)) {
+          s.jump = true;
+          break;
+        }
+        row_last = z;
+        above = z;
+        const double x = rx[i] * z - x0;
+        const double y = y_per_z * z - y0;
+        const double dz = z - z0;
+        s.n += 1.0;
+        s.sx += x;
+        s.sy += y;
+        s.sz += dz;
+        s.sxx += x * x;
+        s.sxy += x * y;
+        s.sxz += x * dz;
+        s.syy += y * y;
+        s.syz += y * dz;
+        s.szz += dz * dz;
+        const double w = 1.0f / z;  // float precision is ample here, and cheaper
+        row_n += 1.0;
+        row_x += rx[i];
+        row_w += w;
+        s.qxx += rx[i] * rx[i];
+        s.qxw += rx[i] * w;
+      }
+      s.qx += row_x;
+      s.qw += row_w;
+      s.qxy += y_per_z * row_x;
+      s.qy += y_per_z * row_n;
+      s.qyy += y_per_z * y_per_z * row_n;
+      s.qyw += y_per_z * row_w;
+    }
+    return s;
+  }
+
+  /// One cell's moments, plane fit and planarity; nothing when it has a depth discontinuity or
+  /// too few valid points.
+  void compute_cell(Cell& c, std::vector<float>& column_last) {
+    Eigen::Vector3d origin;
+    if (!first_valid_point(c, origin)) return;
+    const CellSums s = cell_sums(c, origin, column_last);
+    const int cw = c.x1 - c.x0;
+    const int ch = c.y1 - c.y0;
+    const double n = s.n;
+    if (s.jump || n < kMinValidFraction * cw * ch || n < 6.0) return;
+    const Eigen::Vector3d local_mean = Eigen::Vector3d(s.sx, s.sy, s.sz) / n;
+    c.moments.n = n;
+    c.moments.mean = origin + local_mean;
+    c.moments.scatter << s.sxx, s.sxy, s.sxz, s.sxy, s.syy, s.syz, s.sxz, s.syz, s.szz;
+    c.moments.scatter -= n * local_mean * local_mean.transpose();
+    c.moments.inverse_lhs << s.qxx, s.qxy, s.qx, s.qxy, s.qyy, s.qy, s.qx, s.qy, n;
+    c.moments.inverse_rhs << s.qxw, s.qyw, s.qw;
+    c.fit = fit_plane(c.moments, false);
+    const double tolerance = cell_tolerance(c.moments.mean.z());
+    if (c.fit.rms > tolerance) return;
+    c.planar = true;
+    c.quality = c.fit.rms / tolerance;
   }
 
   /// 2. Region growing from the best-fitting cells first (breadth first over 4-neighbours): a
@@ -572,6 +606,39 @@ class Extraction {
   /// are absorbed. The labels receive the major index; the regions' moments become those of their
   /// pixels.
   void assign_pixels(cv::Mat& labels) {
+    select_majors();
+    std::vector<Moments> pixels(majors_.size());
+    std::array<ShiftedSums, 9> sums;
+    for (int i = 0; i < ncx_ * ncy_; ++i) {
+      const Cell& c = cell(i);
+      const Competitors competing = competitors(i);
+      if (!competing.any_major) continue;
+      // The candidate index of the cell's own major region, -1 if none.
+      int own = -1;
+      if (c.planar && region(c.region).major >= 0)
+        own = static_cast<int>(
+            std::find(competing.regions.begin(), competing.regions.end(), c.region) -
+            competing.regions.begin());
+
+      if (competing.count == 1 && own == 0) {
+        assign_inner_cell(c, labels, pixels[static_cast<std::size_t>(region(c.region).major)],
+                          sums[0]);
+        continue;
+      }
+      assign_contested_cell(c, competing, own, labels, sums);
+      for (int k = 0; k < competing.count; ++k) {
+        const Region& reg = region(competing.regions[static_cast<std::size_t>(k)]);
+        if (reg.major >= 0)
+          pixels[static_cast<std::size_t>(reg.major)].add(
+              sums[static_cast<std::size_t>(k)].moments());
+      }
+    }
+    for (std::size_t k = 0; k < majors_.size(); ++k) region(majors_[k]).moments = pixels[k];
+  }
+
+  /// The major regions (those large enough, the largest kMaxMajorRegions), their exact planes and
+  /// inlier factors; clears the row extents of their pixels.
+  void select_majors() {
     const double min_pixels = o_.min_area_fraction * width_ * height_;
     std::vector<int> majors;
     for (int r = 0; r < static_cast<int>(regions_.size()); ++r) {
@@ -591,94 +658,80 @@ class Extraction {
     set_inlier_factors();
     row_min_.assign(majors_.size() * static_cast<std::size_t>(height_), width_);
     row_max_.assign(majors_.size() * static_cast<std::size_t>(height_), -1);
+  }
 
-    auto competes = [this](int r) {
+  /// The regions competing for the pixels of cell i.
+  Competitors competitors(int i) {
+    const auto competes = [this](int r) {
       return r >= 0 && (region(r).major >= 0 || region(r).cells >= kCompetitorCells);
     };
-    std::vector<Moments> pixels(majors_.size());
-    std::array<ShiftedSums, 9> sums;
-    for (int i = 0; i < ncx_ * ncy_; ++i) {
-      const Cell& c = cell(i);
-      std::array<int, 9> candidates;
-      int num_candidates = 0;
-      bool any_major = false;
-      const int cx = i % ncx_, cy = i / ncx_;
-      for (int dy = -1; dy <= 1; ++dy) {
-        for (int dx = -1; dx <= 1; ++dx) {
-          const int nx = cx + dx, ny = cy + dy;
-          if (nx < 0 || ny < 0 || nx >= ncx_ || ny >= ncy_) continue;
-          const int r = cell(ny * ncx_ + nx).region;
-          if (!competes(r)) continue;
-          if (std::find(candidates.begin(), candidates.begin() + num_candidates, r) !=
-              candidates.begin() + num_candidates)
-            continue;
-          candidates[static_cast<std::size_t>(num_candidates++)] = r;
-          any_major = any_major || region(r).major >= 0;
-        }
-      }
-      if (!any_major) continue;
-      // The candidate index of the cell's own major region, -1 if none.
-      int own = -1;
-      if (c.planar && region(c.region).major >= 0)
-        own = static_cast<int>(std::find(candidates.begin(), candidates.end(), c.region) -
-                               candidates.begin());
-
-      if (num_candidates == 1 && own == 0) {
-        assign_inner_cell(c, labels, pixels[static_cast<std::size_t>(region(c.region).major)],
-                          sums[0]);
-        continue;
-      }
-
-      for (int k = 0; k < num_candidates; ++k) sums[static_cast<std::size_t>(k)] = ShiftedSums{};
-      for (int v = c.y0; v < c.y1; ++v) {
-        const float* row = depth_.ptr<float>(v);
-        auto* label_row = labels.ptr<std::int8_t>(v);
-        const double y_per_z = ray_y_[static_cast<std::size_t>(v)];
-        for (int u = c.x0; u < c.x1; ++u) {
-          const float z = row[u];
-          if (!valid_depth(z)) continue;
-          const double x = ray_x_[static_cast<std::size_t>(u)] * z;
-          const double y = y_per_z * z;
-          const double tolerance = cell_tolerance(z);
-          // The closest competing plane other than the cell's own.
-          int best = -1;
-          double best_distance = std::numeric_limits<double>::infinity();
-          for (int k = 0; k < num_candidates; ++k) {
-            if (k == own) continue;
-            const double distance =
-                std::abs(region(candidates[static_cast<std::size_t>(k)]).fit.distance(x, y, z));
-            if (distance < best_distance) {  // ties: the first in scan order (deterministic)
-              best_distance = distance;
-              best = k;
-            }
-          }
-          if (own >= 0) {
-            // An inlier of the cell's own plane stays unless another plane is closer by a margin
-            // of the own plane's noise level: then it is a sliver of the other surface.
-            const Region& reg = region(candidates[static_cast<std::size_t>(own)]);
-            const double distance = std::abs(reg.fit.distance(x, y, z));
-            if (distance <= reg.inlier_factor * tolerance &&
-                best_distance >= distance - kSliverSigmas * reg.noise_ratio * tolerance) {
-              best = own;
-              best_distance = distance;
-            }
-          }
-          if (best < 0) continue;
-          const Region& reg = region(candidates[static_cast<std::size_t>(best)]);
-          if (reg.major < 0 || best_distance > reg.inlier_factor * tolerance) continue;
-          label_row[u] = static_cast<std::int8_t>(reg.major);
-          extend_row(reg.major, v, u, u);
-          sums[static_cast<std::size_t>(best)].add(x, y, z);
-        }
-      }
-      for (int k = 0; k < num_candidates; ++k) {
-        const Region& reg = region(candidates[static_cast<std::size_t>(k)]);
-        if (reg.major >= 0)
-          pixels[static_cast<std::size_t>(reg.major)].add(
-              sums[static_cast<std::size_t>(k)].moments());
+    Competitors found;
+    const int cx = i % ncx_, cy = i / ncx_;
+    for (int dy = -1; dy <= 1; ++dy) {
+      for (int dx = -1; dx <= 1; ++dx) {
+        const int nx = cx + dx, ny = cy + dy;
+        if (nx < 0 || ny < 0 || nx >= ncx_ || ny >= ncy_) continue;
+        const int r = cell(ny * ncx_ + nx).region;
+        if (!competes(r)) continue;
+        const auto listed = found.regions.begin() + found.count;
+        if (std::find(found.regions.begin(), listed, r) != listed) continue;
+        found.regions[static_cast<std::size_t>(found.count++)] = r;
+        found.any_major = found.any_major || region(r).major >= 0;
       }
     }
-    for (std::size_t k = 0; k < majors_.size(); ++k) region(majors_[k]).moments = pixels[k];
+    return found;
+  }
+
+  /// The pixels of a cell with several competing regions: each goes to the closest plane, the
+  /// cell's own (candidate index `own`, -1 if none) keeping its inliers unless another plane is
+  /// closer by a margin, when that plane is a major region's and the pixel its inlier. The sums
+  /// of the pixels each candidate receives go to `sums` (by candidate index).
+  void assign_contested_cell(const Cell& c, const Competitors& competing, int own, cv::Mat& labels,
+                             std::array<ShiftedSums, 9>& sums) {
+    const auto candidate = [&](int k) -> const Region& {
+      return region(competing.regions[static_cast<std::size_t>(k)]);
+    };
+    for (int k = 0; k < competing.count; ++k) sums[static_cast<std::size_t>(k)] = ShiftedSums{};
+    for (int v = c.y0; v < c.y1; ++v) {
+      const float* row = depth_.ptr<float>(v);
+      auto* label_row = labels.ptr<std::int8_t>(v);
+      const double y_per_z = ray_y_[static_cast<std::size_t>(v)];
+      for (int u = c.x0; u < c.x1; ++u) {
+        const float z = row[u];
+        if (!valid_depth(z)) continue;
+        const double x = ray_x_[static_cast<std::size_t>(u)] * z;
+        const double y = y_per_z * z;
+        const double tolerance = cell_tolerance(z);
+        // The closest competing plane other than the cell's own.
+        int best = -1;
+        double best_distance = std::numeric_limits<double>::infinity();
+        for (int k = 0; k < competing.count; ++k) {
+          if (k == own) continue;
+          const double distance = std::abs(candidate(k).fit.distance(x, y, z));
+          if (distance < best_distance) {  // ties: the first in scan order (deterministic)
+            best_distance = distance;
+            best = k;
+          }
+        }
+        if (own >= 0) {
+          // An inlier of the cell's own plane stays unless another plane is closer by a margin
+          // of the own plane's noise level: then it is a sliver of the other surface.
+          const Region& reg = candidate(own);
+          const double distance = std::abs(reg.fit.distance(x, y, z));
+          if (distance <= reg.inlier_factor * tolerance &&
+              best_distance >= distance - kSliverSigmas * reg.noise_ratio * tolerance) {
+            best = own;
+            best_distance = distance;
+          }
+        }
+        if (best < 0) continue;
+        const Region& reg = candidate(best);
+        if (reg.major < 0 || best_distance > reg.inlier_factor * tolerance) continue;
+        label_row[u] = static_cast<std::int8_t>(reg.major);
+        extend_row(reg.major, v, u, u);
+        sums[static_cast<std::size_t>(best)].add(x, y, z);
+      }
+    }
   }
 
   /// The pixels of a cell inside its major region (no other plane around): the distance test

@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <optional>
+#include <unordered_map>
+#include <vector>
 
 namespace mcslam::map {
 
@@ -17,29 +19,33 @@ KeyFrameId reference_keyframe(const Map& map, KeyFrameId first, const Observatio
   return kNoId;
 }
 
-}  // namespace
+/// Old and new pose of a keyframe.
+struct Move {
+  SE3 old_T_c_w;
+  SE3 new_T_c_w;
+};
+using Moves = std::unordered_map<KeyFrameId, Move>;
 
-void apply_correction(Map& map, const MapCorrection& correction) {
-  if (correction.after.empty()) return;
-  map.count_correction();
-  // erase_observation recomputes the descriptor of a point that loses an observation.
+/// Removes the observations the correction found to be outliers. erase_observation recomputes the
+/// descriptor of a point that loses an observation.
+void erase_outliers(Map& map, const MapCorrection& correction) {
   for (const auto& [kf, point] : correction.point_outliers)
     if (map.point(point) != nullptr) map.erase_observation(point, kf);
   for (const auto& [kf, line] : correction.line_outliers)
     if (map.line(line) != nullptr) map.erase_line_observation(line, kf);
   for (const auto& [kf, plane] : correction.plane_outliers)
     if (map.plane(plane) != nullptr) map.erase_plane_observation(plane, kf);
-  // Old and new pose of every keyframe.
-  struct Move {
-    SE3 old_T_c_w;
-    SE3 new_T_c_w;
-  };
-  std::unordered_map<KeyFrameId, Move> moves;
+}
+
+/// The moves of the listed keyframes that exist and, unless listed_only, of every other keyframe
+/// (with the keyframe it hangs on). Empty when no listed keyframe exists.
+Moves keyframe_moves(const Map& map, const MapCorrection& correction) {
+  Moves moves;
   std::vector<KeyFrameId> corrected;
   for (const auto& [id, T] : correction.after)
     if (map.keyframe(id) != nullptr) corrected.push_back(id);
   std::sort(corrected.begin(), corrected.end());
-  if (corrected.empty()) return;
+  if (corrected.empty()) return moves;
   // A listed keyframe at pose C now, corrected from B to A: C B^-1 A (A when C = B). Its world
   // motion, p' = A^-1 B p, is the same whatever local BA did to it since B.
   for (KeyFrameId id : corrected) {
@@ -65,17 +71,22 @@ void apply_correction(Map& map, const MapCorrection& correction) {
     const Move& r = moves.at(ref);
     moves[id] = {kf.T_c_w, kf.T_c_w * r.old_T_c_w.inverse() * r.new_T_c_w};
   }
-  for (const auto& [id, m] : moves) map.set_keyframe_pose(id, m.new_T_c_w);
+  return moves;
+}
 
-  // World-to-world motion of what hangs on keyframe `id`: p' = T_new^-1 T_old p.
-  const auto motion_of = [&](KeyFrameId id) -> std::optional<SE3> {
-    const auto it = moves.find(id);
-    if (it == moves.end()) return std::nullopt;
-    return it->second.new_T_c_w.inverse() * it->second.old_T_c_w;
-  };
-  const auto reference_motion = [&](KeyFrameId first, const auto& observations) {
-    return motion_of(reference_keyframe(map, first, observations));
-  };
+/// World-to-world motion of a landmark: p' = T_new^-1 T_old p of the keyframe it moves with
+/// (reference_keyframe); nothing when that keyframe did not move.
+template <typename Observations>
+std::optional<SE3> landmark_motion(const Map& map, const Moves& moves, KeyFrameId first,
+                                   const Observations& observations) {
+  const auto it = moves.find(reference_keyframe(map, first, observations));
+  if (it == moves.end()) return std::nullopt;
+  return it->second.new_T_c_w.inverse() * it->second.old_T_c_w;
+}
+
+/// Points take their solved position when they have not moved since the solve (or no positions
+/// at the solve were given), else move with their reference keyframe.
+void move_points(Map& map, const MapCorrection& correction, const Moves& moves) {
   const auto unchanged_since_solved = [&](PointId id, const Eigen::Vector3d& p_w) {
     if (correction.points_before.empty()) return true;
     const auto it = correction.points_before.find(id);
@@ -86,7 +97,7 @@ void apply_correction(Map& map, const MapCorrection& correction) {
   for (PointId id : point_ids) {
     const MapPoint& p = *map.point(id);
     const auto solved = correction.points.find(id);
-    const auto m = reference_motion(p.first_keyframe, p.observations);
+    const auto m = landmark_motion(map, moves, p.first_keyframe, p.observations);
     if (solved != correction.points.end() && unchanged_since_solved(id, p.p_w)) {
       map.set_point_position(id, solved->second);
     } else if (m) {
@@ -96,21 +107,30 @@ void apply_correction(Map& map, const MapCorrection& correction) {
     }
     map.update_point_geometry(id);  // a move changes no descriptor
   }
+}
+
+/// Lines take their solved endpoints, else move with their reference keyframe.
+void move_lines(Map& map, const MapCorrection& correction, const Moves& moves) {
   std::vector<LineId> line_ids;
   for (const auto& [id, l] : map.lines()) line_ids.push_back(id);
   for (LineId id : line_ids) {
     const MapLine& l = *map.line(id);
     if (const auto it = correction.lines.find(id); it != correction.lines.end()) {
       map.set_line_endpoints(id, it->second.first, it->second.second);
-    } else if (const auto m = reference_motion(l.first_keyframe, l.observations)) {
+    } else if (const auto m = landmark_motion(map, moves, l.first_keyframe, l.observations)) {
       map.set_line_endpoints(id, (*m) * l.start_w, (*m) * l.end_w);
     }
   }
+}
+
+/// Planes take their solved coefficients, else move with their reference keyframe; their hulls
+/// always move with it.
+void move_planes(Map& map, const MapCorrection& correction, const Moves& moves) {
   std::vector<PlaneId> plane_ids;
   for (const auto& [id, p] : map.planes()) plane_ids.push_back(id);
   for (PlaneId id : plane_ids) {
     const MapPlane& p = *map.plane(id);
-    const auto m = reference_motion(p.first_keyframe, p.observations);
+    const auto m = landmark_motion(map, moves, p.first_keyframe, p.observations);
     std::vector<Eigen::Vector3d> hull = p.hull;
     if (m)
       for (auto& h : hull) h = (*m) * h;
@@ -123,6 +143,20 @@ void apply_correction(Map& map, const MapCorrection& correction) {
     }
     map.set_plane_hull(id, hull);
   }
+}
+
+}  // namespace
+
+void apply_correction(Map& map, const MapCorrection& correction) {
+  if (correction.after.empty()) return;
+  map.count_correction();
+  erase_outliers(map, correction);
+  const Moves moves = keyframe_moves(map, correction);
+  if (moves.empty()) return;
+  for (const auto& [id, m] : moves) map.set_keyframe_pose(id, m.new_T_c_w);
+  move_points(map, correction, moves);
+  move_lines(map, correction, moves);
+  move_planes(map, correction, moves);
   map.bump_version();
 }
 

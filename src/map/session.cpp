@@ -656,6 +656,61 @@ mapping::KeyframeSamples read_dense_keyframe(Reader& r, const SessionInfo& info)
   return kf;
 }
 
+/// The map's id counters and version.
+Map::Counters read_counters(Reader& r) {
+  Map::Counters counters;
+  counters.next_keyframe = r.get<std::uint64_t>();
+  counters.next_point = r.get<std::uint64_t>();
+  counters.next_line = r.get<std::uint64_t>();
+  counters.next_plane = r.get<std::uint64_t>();
+  counters.last_keyframe = r.get<std::uint64_t>();
+  counters.version = r.get<std::uint64_t>();
+  return counters;
+}
+
+/// A map point (its id greater than `previous`, which it becomes).
+MapPoint read_point(Reader& r, std::optional<std::uint64_t>& previous) {
+  MapPoint mp;
+  mp.id = read_id(r, previous, "point");
+  mp.p_w = r.vec3();
+  mp.descriptor = r.descriptor();
+  mp.observations = r.links("observations");
+  mp.normal = r.vec3();
+  mp.min_distance = r.get<double>();
+  mp.max_distance = r.get<double>();
+  mp.first_keyframe = r.get<std::uint64_t>();
+  for (auto& c : mp.color) c = r.get<std::uint8_t>();
+  mp.visible = r.get<std::int32_t>();
+  mp.found = r.get<std::int32_t>();
+  return mp;
+}
+
+/// A map line (its id greater than `previous`, which it becomes).
+MapLine read_line(Reader& r, std::optional<std::uint64_t>& previous) {
+  MapLine ml;
+  ml.id = read_id(r, previous, "line");
+  ml.start_w = r.vec3();
+  ml.end_w = r.vec3();
+  ml.descriptor = r.descriptor();
+  ml.observations = r.links("observations");
+  ml.first_keyframe = r.get<std::uint64_t>();
+  ml.visible = r.get<std::int32_t>();
+  ml.found = r.get<std::int32_t>();
+  return ml;
+}
+
+/// A map plane (its id greater than `previous`, which it becomes).
+MapPlane read_plane(Reader& r, std::optional<std::uint64_t>& previous) {
+  MapPlane mp;
+  mp.id = read_id(r, previous, "plane");
+  mp.normal = r.vec3();
+  mp.d = r.get<double>();
+  mp.observations = r.links("observations");
+  mp.hull = r.hull();
+  mp.first_keyframe = r.get<std::uint64_t>();
+  return mp;
+}
+
 Session read_body(Reader& r) {
   Session session;
   r.set_context("session info");
@@ -668,14 +723,7 @@ Session read_body(Reader& r) {
   Map& map = *session.map;
 
   r.set_context("map counters");
-  Map::Counters counters;
-  counters.next_keyframe = r.get<std::uint64_t>();
-  counters.next_point = r.get<std::uint64_t>();
-  counters.next_line = r.get<std::uint64_t>();
-  counters.next_plane = r.get<std::uint64_t>();
-  counters.last_keyframe = r.get<std::uint64_t>();
-  counters.version = r.get<std::uint64_t>();
-  map.restore_counters(counters);
+  map.restore_counters(read_counters(r));
 
   r.set_context("");
   std::optional<std::uint64_t> previous;
@@ -690,51 +738,17 @@ Session read_body(Reader& r) {
   r.set_context("");
   previous.reset();
   const std::size_t n_points = r.count(kMapPointMinBytes, "point");
-  for (std::size_t i = 0; i < n_points; ++i) {
-    MapPoint mp;
-    mp.id = read_id(r, previous, "point");
-    mp.p_w = r.vec3();
-    mp.descriptor = r.descriptor();
-    mp.observations = r.links("observations");
-    mp.normal = r.vec3();
-    mp.min_distance = r.get<double>();
-    mp.max_distance = r.get<double>();
-    mp.first_keyframe = r.get<std::uint64_t>();
-    for (auto& c : mp.color) c = r.get<std::uint8_t>();
-    mp.visible = r.get<std::int32_t>();
-    mp.found = r.get<std::int32_t>();
-    map.restore_point(std::move(mp));
-  }
+  for (std::size_t i = 0; i < n_points; ++i) map.restore_point(read_point(r, previous));
 
   r.set_context("");
   previous.reset();
   const std::size_t n_lines = r.count(kMapLineMinBytes, "line");
-  for (std::size_t i = 0; i < n_lines; ++i) {
-    MapLine ml;
-    ml.id = read_id(r, previous, "line");
-    ml.start_w = r.vec3();
-    ml.end_w = r.vec3();
-    ml.descriptor = r.descriptor();
-    ml.observations = r.links("observations");
-    ml.first_keyframe = r.get<std::uint64_t>();
-    ml.visible = r.get<std::int32_t>();
-    ml.found = r.get<std::int32_t>();
-    map.restore_line(std::move(ml));
-  }
+  for (std::size_t i = 0; i < n_lines; ++i) map.restore_line(read_line(r, previous));
 
   r.set_context("");
   previous.reset();
   const std::size_t n_planes = r.count(kMapPlaneMinBytes, "plane");
-  for (std::size_t i = 0; i < n_planes; ++i) {
-    MapPlane mp;
-    mp.id = read_id(r, previous, "plane");
-    mp.normal = r.vec3();
-    mp.d = r.get<double>();
-    mp.observations = r.links("observations");
-    mp.hull = r.hull();
-    mp.first_keyframe = r.get<std::uint64_t>();
-    map.restore_plane(std::move(mp));
-  }
+  for (std::size_t i = 0; i < n_planes; ++i) map.restore_plane(read_plane(r, previous));
 
   r.set_context("");
   previous.reset();

@@ -725,15 +725,27 @@ struct Detector::Impl {
                ? decode_yolov8(outputs[0], lb, names, options, image_size)
                : decode_yolox(outputs[0], input_size, lb, names, options, image_size);
   }
+
+  // Loading, in the order the constructor runs them (each throws InputError naming the model).
+
+  /// Reads the network from the ONNX file at `path`, for OpenCV's own backend on the CPU.
+  void load_network();
+  /// The input size: the graph's, else Ultralytics' imgsz metadata; then options.input_size when
+  /// set, the network's head regridded for it.
+  void settle_input_size(const OnnxModelInfo& info);
+  /// Runs the graph once: proves OpenCV can run it and gives the output's shape.
+  cv::Mat test_forward();
+  /// The format from the output's shape; returns the number of classes.
+  int settle_format(const cv::Mat& output, const OnnxModelInfo& info);
+  /// The class names: the model's when they match the class count, else COCO's when the count
+  /// is COCO's, else class0, class1, ...
+  void settle_names(const OnnxModelInfo& info, int classes);
 };
 
-Detector::Detector(const std::string& model_path, const DetectorOptions& options)
-    : impl_(std::make_unique<Impl>()) {
-  Impl& m = *impl_;
-  m.path = model_path;
-  m.options = options;
-  if (const auto problem = options.check()) throw InputError(*problem);
+namespace {
 
+/// Throws when the model file is missing, not a regular file or empty.
+void check_model_file(const std::string& model_path) {
   namespace fs = std::filesystem;
   std::error_code ec;
   if (!fs::exists(model_path, ec)) throw InputError(file_error(model_path, "model file not found"));
@@ -741,29 +753,19 @@ Detector::Detector(const std::string& model_path, const DetectorOptions& options
     throw InputError(file_error(model_path, "the model is not a regular file"));
   if (fs::file_size(model_path, ec) == 0 && !ec)
     throw InputError(file_error(model_path, "the model file is empty"));
+}
 
-  const OnnxModelInfo info = read_onnx_info(model_path);
-  if (const auto task = info.find("task"); task && *task != "detect")
-    throw InputError(file_error(model_path, "Ultralytics task '" + *task +
-                                                "' is not supported (a detect export is needed)"));
-  try {
-    m.net = cv::dnn::readNetFromONNX(model_path);
-  } catch (const cv::Exception& e) {
-    throw InputError(
-        file_error(model_path, "not an ONNX model OpenCV can read (" + opencv_message(e) + ")"));
-  }
-  if (m.net.empty()) throw InputError(file_error(model_path, "OpenCV loaded an empty network"));
-  m.net.setPreferableBackend(cv::dnn::DNN_BACKEND_OPENCV);
-  m.net.setPreferableTarget(cv::dnn::DNN_TARGET_CPU);
-
-  // The input size: the graph's input shape, else Ultralytics' imgsz metadata ("[320, 320]").
+/// The input size of the graph's input shape, else of Ultralytics' imgsz metadata ("[320, 320]");
+/// an empty size when neither gives one.
+cv::Size declared_input_size(const OnnxModelInfo& info, const std::string& model_path) {
   const auto& shape = info.input_shape;
   if (shape.size() == 4 && shape[2] > 0 && shape[3] > 0 && shape[2] <= 8192 && shape[3] <= 8192) {
     if (shape[1] != 3 && shape[1] > 0)
       throw InputError(file_error(model_path, "the input has " + std::to_string(shape[1]) +
                                                   " channels; a 3-channel image input is needed"));
-    m.input_size = cv::Size(static_cast<int>(shape[3]), static_cast<int>(shape[2]));
-  } else if (const auto imgsz = info.find("imgsz")) {
+    return cv::Size(static_cast<int>(shape[3]), static_cast<int>(shape[2]));
+  }
+  if (const auto imgsz = info.find("imgsz")) {
     ReprParser p(*imgsz);
     std::optional<long> h, w;
     if (p.consume('[')) {
@@ -771,27 +773,110 @@ Detector::Detector(const std::string& model_path, const DetectorOptions& options
       w = p.consume(',') ? p.integer() : h;
     }
     if (h && w && *h > 0 && *w > 0 && *h <= 8192 && *w <= 8192)
-      m.input_size = cv::Size(static_cast<int>(*w), static_cast<int>(*h));
+      return cv::Size(static_cast<int>(*w), static_cast<int>(*h));
   }
-  if (m.input_size.area() <= 0)
-    throw InputError(file_error(model_path,
+  return cv::Size();
+}
+
+}  // namespace
+
+void Detector::Impl::load_network() {
+  try {
+    net = cv::dnn::readNetFromONNX(path);
+  } catch (const cv::Exception& e) {
+    throw InputError(
+        file_error(path, "not an ONNX model OpenCV can read (" + opencv_message(e) + ")"));
+  }
+  if (net.empty()) throw InputError(file_error(path, "OpenCV loaded an empty network"));
+  net.setPreferableBackend(cv::dnn::DNN_BACKEND_OPENCV);
+  net.setPreferableTarget(cv::dnn::DNN_TARGET_CPU);
+}
+
+void Detector::Impl::settle_input_size(const OnnxModelInfo& info) {
+  input_size = declared_input_size(info, path);
+  if (input_size.area() <= 0)
+    throw InputError(file_error(path,
                                 "the input size is not fixed in the graph (a 1x3xHxW input with "
                                 "numbers for H and W is needed; export with a fixed image size)"));
-
-  m.graph_input_size = m.input_size;
-  if (options.input_size.area() > 0 && options.input_size != m.input_size) {
+  graph_input_size = input_size;
+  if (options.input_size.area() > 0 && options.input_size != input_size) {
     std::variant<int, std::string> regridded;
     try {
-      regridded = regrid_head(m.net, m.input_size, options.input_size);
+      regridded = regrid_head(net, input_size, options.input_size);
     } catch (const cv::Exception& e) {
       regridded = opencv_message(e);
     }
     if (const auto* problem = std::get_if<std::string>(&regridded))
-      throw InputError(file_error(
-          model_path, "cannot run at " + std::to_string(options.input_size.width) + "x" +
-                          std::to_string(options.input_size.height) + " (" + *problem + ")"));
-    m.input_size = options.input_size;
+      throw InputError(
+          file_error(path, "cannot run at " + std::to_string(options.input_size.width) + "x" +
+                               std::to_string(options.input_size.height) + " (" + *problem + ")"));
+    input_size = options.input_size;
   }
+}
+
+cv::Mat Detector::Impl::test_forward() {
+  // The input values do not matter for the shape.
+  try {
+    const int dims[] = {1, 3, input_size.height, input_size.width};
+    forward(cv::Mat(4, dims, CV_32F, cv::Scalar(kPadGrey / 255.0)));
+    return outputs.at(0);
+  } catch (const cv::Exception& e) {
+    throw InputError(file_error(
+        path, "OpenCV " CV_VERSION " cannot run this model" +
+                  (input_size != graph_input_size ? " at " + std::to_string(input_size.width) +
+                                                        "x" + std::to_string(input_size.height)
+                                                  : std::string()) +
+                  " (" + opencv_message(e) + ")"));
+  }
+}
+
+int Detector::Impl::settle_format(const cv::Mat& output, const OnnxModelInfo& info) {
+  const int classes_v8 = output.dims == 3 ? output.size[1] - 4 : 0;
+  const int classes_x = output.dims == 3 ? output.size[2] - 5 : 0;
+  const bool ultralytics = info.find("names") || info.find("stride");
+  if (output.dims == 3 && output.size[0] == 1 && output.type() == CV_32F &&
+      output.size[1] < output.size[2] && classes_v8 >= 1) {
+    format = DetectorFormat::kYoloV8;
+  } else if (output.dims == 3 && output.size[0] == 1 && output.type() == CV_32F &&
+             output.size[1] > output.size[2] && classes_x >= 1 &&
+             output.size[1] == yolox_anchor_count(input_size) && !ultralytics) {
+    format = DetectorFormat::kYoloX;
+  } else {
+    throw InputError(
+        file_error(path, "output shape " + describe_shape(output) +
+                             " is neither YOLOv8 (1x(4+C)xN) nor YOLOX (1xNx(5+C) with N = " +
+                             std::to_string(yolox_anchor_count(input_size)) + " for a " +
+                             std::to_string(input_size.width) + "x" +
+                             std::to_string(input_size.height) + " input)"));
+  }
+  return format == DetectorFormat::kYoloV8 ? classes_v8 : classes_x;
+}
+
+void Detector::Impl::settle_names(const OnnxModelInfo& info, int classes) {
+  std::optional<std::vector<std::string>> declared;
+  if (const auto text = info.find("names")) declared = parse_class_names(*text);
+  if (declared && static_cast<int>(declared->size()) == classes) {
+    names = std::move(*declared);
+  } else if (classes == static_cast<int>(coco_class_names().size())) {
+    names = coco_class_names();
+  } else {
+    for (int c = 0; c < classes; ++c) names.push_back("class" + std::to_string(c));
+  }
+}
+
+Detector::Detector(const std::string& model_path, const DetectorOptions& options)
+    : impl_(std::make_unique<Impl>()) {
+  Impl& m = *impl_;
+  m.path = model_path;
+  m.options = options;
+  if (const auto problem = options.check()) throw InputError(*problem);
+  check_model_file(model_path);
+  const OnnxModelInfo info = read_onnx_info(model_path);
+  if (const auto task = info.find("task"); task && *task != "detect")
+    throw InputError(file_error(model_path, "Ultralytics task '" + *task +
+                                                "' is not supported (a detect export is needed)"));
+  m.load_network();
+  m.settle_input_size(info);
   const cv::dnn::MatShape input_shape = {1, 3, m.input_size.height, m.input_size.width};
   try {
     m.adjusted = fix_trailing_broadcast_scales(m.net, input_shape);
@@ -800,52 +885,9 @@ Detector::Detector(const std::string& model_path, const DetectorOptions& options
   }
   m.output_names = m.net.getUnconnectedOutLayersNames();
   if (m.output_names.empty()) throw InputError(file_error(model_path, "the network has no output"));
-
-  // The test forward pass: proves OpenCV can run the graph and gives the output shape. The
-  // input values do not matter for the shape.
-  cv::Mat output;
-  try {
-    const int dims[] = {1, 3, m.input_size.height, m.input_size.width};
-    m.forward(cv::Mat(4, dims, CV_32F, cv::Scalar(kPadGrey / 255.0)));
-    output = m.outputs.at(0);
-  } catch (const cv::Exception& e) {
-    throw InputError(file_error(model_path, "OpenCV " CV_VERSION " cannot run this model" +
-                                                (m.input_size != m.graph_input_size
-                                                     ? " at " + std::to_string(m.input_size.width) +
-                                                           "x" + std::to_string(m.input_size.height)
-                                                     : std::string()) +
-                                                " (" + opencv_message(e) + ")"));
-  }
-
-  const int classes_v8 = output.dims == 3 ? output.size[1] - 4 : 0;
-  const int classes_x = output.dims == 3 ? output.size[2] - 5 : 0;
-  const bool ultralytics = info.find("names") || info.find("stride");
-  if (output.dims == 3 && output.size[0] == 1 && output.type() == CV_32F &&
-      output.size[1] < output.size[2] && classes_v8 >= 1) {
-    m.format = DetectorFormat::kYoloV8;
-  } else if (output.dims == 3 && output.size[0] == 1 && output.type() == CV_32F &&
-             output.size[1] > output.size[2] && classes_x >= 1 &&
-             output.size[1] == yolox_anchor_count(m.input_size) && !ultralytics) {
-    m.format = DetectorFormat::kYoloX;
-  } else {
-    throw InputError(
-        file_error(model_path, "output shape " + describe_shape(output) +
-                                   " is neither YOLOv8 (1x(4+C)xN) nor YOLOX (1xNx(5+C) with N = " +
-                                   std::to_string(yolox_anchor_count(m.input_size)) + " for a " +
-                                   std::to_string(m.input_size.width) + "x" +
-                                   std::to_string(m.input_size.height) + " input)"));
-  }
-  const int classes = m.format == DetectorFormat::kYoloV8 ? classes_v8 : classes_x;
-
-  std::optional<std::vector<std::string>> names;
-  if (const auto text = info.find("names")) names = parse_class_names(*text);
-  if (names && static_cast<int>(names->size()) == classes) {
-    m.names = std::move(*names);
-  } else if (classes == static_cast<int>(coco_class_names().size())) {
-    m.names = coco_class_names();
-  } else {
-    for (int c = 0; c < classes; ++c) m.names.push_back("class" + std::to_string(c));
-  }
+  const cv::Mat output = m.test_forward();
+  const int classes = m.settle_format(output, info);
+  m.settle_names(info, classes);
   m.allocate();
 }
 

@@ -98,6 +98,21 @@ struct Mapping {
 
 std::string hex_offset(std::uint64_t at) { return "offset " + std::to_string(at); }
 
+/// Message counts of a scan: per topic, in all, and the first and last log times.
+struct ScanTally {
+  std::vector<std::uint64_t> counts;
+  std::uint64_t total = 0;
+  std::int64_t first = std::numeric_limits<std::int64_t>::max();
+  std::int64_t last = std::numeric_limits<std::int64_t>::min();
+};
+
+/// What a scan does with each message: counts it, and passes it to `fn` when its topic is wanted.
+struct ScanVisit {
+  const std::vector<bool>& wanted;
+  const StorageFile::Visitor& fn;
+  ScanTally& tally;
+};
+
 class McapFile : public StorageFile {
  public:
   explicit McapFile(const std::string& path) : path_(path) { map(); }
@@ -144,36 +159,15 @@ class McapFile : public StorageFile {
   }
 
   void scan(const std::vector<bool>& wanted, const Visitor& fn) override {
-    std::vector<std::uint64_t> counts(topics.size(), 0);
-    std::uint64_t total = 0;
-    std::int64_t first = std::numeric_limits<std::int64_t>::max();
-    std::int64_t last = std::numeric_limits<std::int64_t>::min();
+    ScanTally tally;
+    tally.counts.assign(topics.size(), 0);
+    const ScanVisit visit{wanted, fn, tally};
     chunks_.clear();
     const std::uint8_t* d = map_.data;
     const std::size_t n = map_.size - 8;
     std::size_t at = 8;
     bool header = false, footer = false;
     std::vector<std::uint8_t> buffer;
-    const auto on_message = [&](Cursor& c, std::int64_t key, std::uint64_t base,
-                                std::uint64_t record_at) {
-      const std::uint16_t channel = c.u16("message channel id");
-      c.u32("message sequence");
-      const std::uint64_t log_time = c.u64("message log time");
-      c.u64("message publish time");
-      const auto it = channel_topic_.find(channel);
-      if (it == channel_topic_.end())
-        fail("corrupt MCAP file: message at " + hex_offset(record_at) + " on channel " +
-             std::to_string(channel) + ", which no Channel record defines");
-      const std::uint32_t topic = it->second;
-      const auto ts = static_cast<std::int64_t>(log_time);
-      if (topic >= counts.size()) counts.resize(topics.size(), 0);  // a channel defined late
-      ++counts[topic];
-      ++total;
-      first = std::min(first, ts);
-      last = std::max(last, ts);
-      if (fn && topic < wanted.size() && wanted[topic])
-        fn(topic, ts, key, base + c.at, c.p + c.at, c.n - c.at);
-    };
     while (at < n && !footer) {
       if (n - at < 9)
         fail("truncated MCAP file: a record header at " + hex_offset(at) + " runs past the end");
@@ -207,31 +201,11 @@ class McapFile : public StorageFile {
             add_channel(c);
             break;
           case kMessage:
-            on_message(c, -1, record_at + 9, record_at);
+            scan_message(c, -1, record_at + 9, record_at, visit);
             break;
-          case kChunk: {
-            const std::int64_t key = static_cast<std::int64_t>(chunks_.size());
-            chunks_.push_back(record_at);
-            const auto [records, size] = chunk_records(record_at, buffer);
-            std::size_t k = 0;
-            while (k < size) {
-              if (size - k < 9)
-                fail("corrupt MCAP chunk at " + hex_offset(record_at) +
-                     ": a record header runs past the chunk's end");
-              const std::uint8_t inner_op = records[k];
-              std::uint64_t inner_len;
-              std::memcpy(&inner_len, records + k + 1, 8);
-              if (inner_len > size - k - 9)
-                fail("corrupt MCAP chunk at " + hex_offset(record_at) + ": record (opcode " +
-                     std::to_string(inner_op) + ") runs past the chunk's end");
-              Cursor ic{records + k + 9, static_cast<std::size_t>(inner_len)};
-              if (inner_op == kSchema) add_schema(ic);
-              if (inner_op == kChannel) add_channel(ic);
-              if (inner_op == kMessage) on_message(ic, key, k + 9, record_at);
-              k += 9 + inner_len;
-            }
+          case kChunk:
+            scan_chunk(record_at, buffer, visit);
             break;
-          }
           default:
             break;  // indexes, attachments, metadata, statistics, data end
         }
@@ -241,12 +215,12 @@ class McapFile : public StorageFile {
       }
     }
     if (!footer) fail("truncated MCAP file: no footer record");
-    counts.resize(topics.size(), 0);
-    for (std::size_t t = 0; t < topics.size() && t < counts.size(); ++t)
-      topics[t].count = counts[t];
-    message_count = total;
-    start_ns = total ? first : 0;
-    end_ns = total ? last : 0;
+    tally.counts.resize(topics.size(), 0);
+    for (std::size_t t = 0; t < topics.size() && t < tally.counts.size(); ++t)
+      topics[t].count = tally.counts[t];
+    message_count = tally.total;
+    start_ns = tally.total ? tally.first : 0;
+    end_ns = tally.total ? tally.last : 0;
   }
 
   Payload fetch(std::int64_t key, std::uint64_t offset, std::uint64_t size) override {
@@ -289,6 +263,57 @@ class McapFile : public StorageFile {
     ::madvise(p, static_cast<std::size_t>(st.st_size), MADV_SEQUENTIAL);
     map_.data = static_cast<const std::uint8_t*>(p);
     map_.size = static_cast<std::size_t>(st.st_size);
+  }
+
+  /// A Message record's body at `c` (chunk `key`, -1 outside chunks; its payload at `base` + the
+  /// cursor's position in the file or the chunk): counted, and visited when its topic is wanted.
+  /// `record_at` (the record's or its chunk's offset) names it in errors.
+  void scan_message(Cursor& c, std::int64_t key, std::uint64_t base, std::uint64_t record_at,
+                    const ScanVisit& visit) {
+    ScanTally& tally = visit.tally;
+    const std::uint16_t channel = c.u16("message channel id");
+    c.u32("message sequence");
+    const std::uint64_t log_time = c.u64("message log time");
+    c.u64("message publish time");
+    const auto it = channel_topic_.find(channel);
+    if (it == channel_topic_.end())
+      fail("corrupt MCAP file: message at " + hex_offset(record_at) + " on channel " +
+           std::to_string(channel) + ", which no Channel record defines");
+    const std::uint32_t topic = it->second;
+    const auto ts = static_cast<std::int64_t>(log_time);
+    if (topic >= tally.counts.size()) tally.counts.resize(topics.size(), 0);  // defined late
+    ++tally.counts[topic];
+    ++tally.total;
+    tally.first = std::min(tally.first, ts);
+    tally.last = std::max(tally.last, ts);
+    if (visit.fn && topic < visit.wanted.size() && visit.wanted[topic])
+      visit.fn(topic, ts, key, base + c.at, c.p + c.at, c.n - c.at);
+  }
+
+  /// The records of the Chunk record at `record_at` (decompressed into `buffer`): its schemas,
+  /// channels and messages.
+  void scan_chunk(std::size_t record_at, std::vector<std::uint8_t>& buffer,
+                  const ScanVisit& visit) {
+    const std::int64_t key = static_cast<std::int64_t>(chunks_.size());
+    chunks_.push_back(record_at);
+    const auto [records, size] = chunk_records(record_at, buffer);
+    std::size_t k = 0;
+    while (k < size) {
+      if (size - k < 9)
+        fail("corrupt MCAP chunk at " + hex_offset(record_at) +
+             ": a record header runs past the chunk's end");
+      const std::uint8_t inner_op = records[k];
+      std::uint64_t inner_len;
+      std::memcpy(&inner_len, records + k + 1, 8);
+      if (inner_len > size - k - 9)
+        fail("corrupt MCAP chunk at " + hex_offset(record_at) + ": record (opcode " +
+             std::to_string(inner_op) + ") runs past the chunk's end");
+      Cursor ic{records + k + 9, static_cast<std::size_t>(inner_len)};
+      if (inner_op == kSchema) add_schema(ic);
+      if (inner_op == kChannel) add_channel(ic);
+      if (inner_op == kMessage) scan_message(ic, key, k + 9, record_at, visit);
+      k += 9 + inner_len;
+    }
   }
 
   void add_schema(Cursor& c) {

@@ -51,6 +51,15 @@ struct ImageTopic {
   std::string format;  // encoding or compressed format of the first
 };
 
+/// What the scan reads from each topic of a recording: its role (the topic it was named as,
+/// kOther when none or when it is not read) and the normalised types of the optional topics.
+struct ScanPlan {
+  enum Role { kOther = -1, kRgb, kDepth, kCameraInfo, kGroundtruth, kSettings };
+  std::vector<bool> wanted;
+  std::vector<int> role;
+  std::string gt_type, info_type, settings_type;
+};
+
 }  // namespace
 
 TopicOptions TopicOptions::preset(const std::string& name) {
@@ -116,7 +125,26 @@ struct RecordingSource::Impl {
                       "topic '" + topic + "' message " + std::to_string(k) +
                           (std::isnan(stamp) ? std::string() : " (stamp " + seconds(stamp) + ")"));
   }
+  /// Reads the index of every image, the camera info, the settings and the ground truth.
   void scan();
+  /// The recording's topics, names, types and message counts, for messages.
+  std::string list_topics() const;
+  /// Settles the colour and depth topic names (older RealSense driver, image_transport's
+  /// compressed topics); throws when either is missing.
+  void resolve_topics();
+  /// Which topics to read and as what; throws when an image or settings topic has a type the
+  /// source cannot read (a ground-truth topic of another type only warns).
+  ScanPlan plan_scan();
+  /// The intrinsics (and distortion) of a sensor_msgs/msg/CameraInfo message of topic `name`.
+  void read_camera_info(const Payload& p, const std::string& name);
+  /// The poses of a ground-truth message of type `gt_type`; a TF message's frame pairs are
+  /// collected in tf_pairs.
+  void read_groundtruth(const Payload& p, const std::string& gt_type,
+                        std::set<std::pair<std::string, std::string>>& tf_pairs);
+  /// Throws when an image topic is empty or the two disagree in size; warns when a TF topic had
+  /// no transform between the named frames.
+  void check_scan(const std::string& gt_type,
+                  const std::set<std::pair<std::string, std::string>>& tf_pairs);
   void add_image(ImageTopic& topic, const MessageRef& ref, const Payload& p, bool is_depth);
   void associate();
   cv::Mat decode(const ImageTopic& topic, const MessageRef& ref, bool is_depth,
@@ -167,16 +195,16 @@ void RecordingSource::Impl::add_image(ImageTopic& topic, const MessageRef& ref, 
   topic.stamps.push_back(stamp);
 }
 
-void RecordingSource::Impl::scan() {
+std::string RecordingSource::Impl::list_topics() const {
+  std::string s;
+  for (const auto& info : recording->topics())
+    s += (s.empty() ? "" : ", ") + info.name + " (" + info.type + ", " +
+         std::to_string(info.message_count) + ")";
+  return s.empty() ? std::string("none") : s;
+}
+
+void RecordingSource::Impl::resolve_topics() {
   TopicOptions& t = options.topics;
-  const auto& topics = recording->topics();
-  const auto list_topics = [&topics] {
-    std::string s;
-    for (const auto& info : topics)
-      s += (s.empty() ? "" : ", ") + info.name + " (" + info.type + ", " +
-           std::to_string(info.message_count) + ")";
-    return s.empty() ? std::string("none") : s;
-  };
   if (t.realsense && !recording->find_topic(t.rgb) &&
       recording->find_topic("/camera/color/image_raw")) {
     // The driver before 4.54 (namespace camera, node camera not doubled).
@@ -195,17 +223,23 @@ void RecordingSource::Impl::scan() {
                                             "' (the recording has: " + list_topics() +
                                             "; name the topics with --rgb-topic, --depth-topic "
                                             "or --topics)"));
-  std::vector<bool> wanted(topics.size(), false);
-  std::vector<int> role(topics.size(), -1);  // 0 rgb, 1 depth, 2 info, 3 gt, 4 settings
+}
+
+ScanPlan RecordingSource::Impl::plan_scan() {
+  const TopicOptions& t = options.topics;
+  const auto& topics = recording->topics();
+  ScanPlan plan;
+  plan.wanted.assign(topics.size(), false);
+  plan.role.assign(topics.size(), ScanPlan::kOther);
   const std::string* names[] = {&t.rgb, &t.depth, &t.camera_info, &t.groundtruth, &t.settings};
-  for (int r = 0; r < 5; ++r) {
+  for (int r = ScanPlan::kRgb; r <= ScanPlan::kSettings; ++r) {
     if (names[r]->empty()) continue;
     if (const auto i = recording->find_topic(*names[r])) {
-      wanted[*i] = true;
-      role[*i] = r;
+      plan.wanted[*i] = true;
+      plan.role[*i] = r;
     }
   }
-  for (int r = 0; r < 2; ++r) {
+  for (int r = ScanPlan::kRgb; r <= ScanPlan::kDepth; ++r) {
     const TopicInfo& info = topics[*recording->find_topic(*names[r])];
     const std::string type = detail::normalised_type(info.type);
     if (info.serialization_format != "cdr")
@@ -215,15 +249,15 @@ void RecordingSource::Impl::scan() {
       throw InputError(file_error(path, "topic '" + info.name + "' has type " + info.type +
                                             ", expected sensor_msgs/msg/Image or "
                                             "sensor_msgs/msg/CompressedImage"));
-    (r == 0 ? rgb : depth).compressed = type == kCompressed;
+    (r == ScanPlan::kRgb ? rgb : depth).compressed = type == kCompressed;
   }
-  std::string gt_type, info_type, settings_type;
   if (const auto i = t.groundtruth.empty() ? std::nullopt : recording->find_topic(t.groundtruth))
-    gt_type = detail::normalised_type(topics[*i].type);
+    plan.gt_type = detail::normalised_type(topics[*i].type);
   if (const auto i = t.camera_info.empty() ? std::nullopt : recording->find_topic(t.camera_info))
-    info_type = detail::normalised_type(topics[*i].type);
+    plan.info_type = detail::normalised_type(topics[*i].type);
   if (const auto i = t.settings.empty() ? std::nullopt : recording->find_topic(t.settings))
-    settings_type = detail::normalised_type(topics[*i].type);
+    plan.settings_type = detail::normalised_type(topics[*i].type);
+  const std::string& gt_type = plan.gt_type;
   if (!gt_type.empty() && gt_type != "tf2_msgs/msg/TFMessage" &&
       gt_type != "geometry_msgs/msg/PoseStamped" &&
       gt_type != "geometry_msgs/msg/TransformStamped" && gt_type != "nav_msgs/msg/Odometry") {
@@ -232,77 +266,61 @@ void RecordingSource::Impl::scan() {
                                             " (use tf2_msgs/msg/TFMessage, "
                                             "geometry_msgs/msg/PoseStamped, TransformStamped or "
                                             "nav_msgs/msg/Odometry): no ground truth"));
-    wanted[*recording->find_topic(t.groundtruth)] = false;
+    plan.wanted[*recording->find_topic(t.groundtruth)] = false;
   }
-  if (!settings_type.empty() && settings_type != "std_msgs/msg/String")
-    throw InputError(file_error(path, "topic '" + t.settings + "' has type " + settings_type +
+  if (!plan.settings_type.empty() && plan.settings_type != "std_msgs/msg/String")
+    throw InputError(file_error(path, "topic '" + t.settings + "' has type " + plan.settings_type +
                                           ", expected std_msgs/msg/String"));
-  bool have_info = false;
-  std::set<std::pair<std::string, std::string>> tf_pairs;
-  std::vector<std::size_t> counts(topics.size(), 0);
-  recording->read(wanted, [&](const MessageRef& ref, const Payload& p) {
-    const std::size_t k = counts[ref.topic]++;
-    const int r = role[ref.topic];
-    const std::string& name = topics[ref.topic].name;
-    if (r == 0) return add_image(rgb, ref, p, false);
-    if (r == 1) return add_image(depth, ref, p, true);
-    try {
-      if (r == 2) {
-        if (have_info) return;
-        have_info = true;
-        if (info_type != "sensor_msgs/msg/CameraInfo") {
-          warnings.push_back(file_error(path, "topic '" + name + "' (" + info_type +
-                                                  ") is not a sensor_msgs/msg/CameraInfo: "
-                                                  "intrinsics not taken from it"));
-          return;
-        }
-        const auto info = detail::decode_camera_info(p.data, p.size);
-        if (!(info.k[0] > 0.0 && info.k[4] > 0.0)) return;
-        io::CameraHints::Intrinsics in;
-        in.fx = info.k[0];
-        in.fy = info.k[4];
-        in.cx = info.k[2];
-        in.cy = info.k[5];
-        in.width = static_cast<int>(info.width);
-        in.height = static_cast<int>(info.height);
-        if (info.distortion_model == "plumb_bob" ||
-            info.distortion_model == "rational_polynomial") {
-          for (std::size_t i = 0; i < 5 && i < info.d.size(); ++i) in.distortion[i] = info.d[i];
-        } else if (!info.distortion_model.empty() &&
-                   std::any_of(info.d.begin(), info.d.end(), [](double d) { return d != 0.0; })) {
-          warnings.push_back(file_error(path, "camera_info distortion model '" +
-                                                  info.distortion_model +
-                                                  "' is not plumb_bob: distortion ignored"));
-        }
-        hints.intrinsics = in;
-        hints.intrinsics_name = path + ":" + name;
-      } else if (r == 4) {
-        if (hints.settings_yaml) return;
-        hints.settings_yaml = detail::decode_string(p.data, p.size);
-        hints.settings_name = path + ":" + name;
-      } else if (r == 3) {
-        std::vector<detail::Pose> poses;
-        if (gt_type == "tf2_msgs/msg/TFMessage") {
-          for (const auto& x : detail::decode_tf(p.data, p.size)) {
-            tf_pairs.insert({strip_slash(x.header.frame_id), strip_slash(x.child_frame_id)});
-            if (strip_slash(x.header.frame_id) == strip_slash(t.world_frame) &&
-                strip_slash(x.child_frame_id) == strip_slash(t.camera_frame))
-              poses.push_back(x);
-          }
-        } else if (gt_type == "geometry_msgs/msg/PoseStamped") {
-          poses.push_back(detail::decode_pose_stamped(p.data, p.size));
-        } else if (gt_type == "geometry_msgs/msg/TransformStamped") {
-          poses.push_back(detail::decode_transform_stamped(p.data, p.size));
-        } else {
-          poses.push_back(detail::decode_odometry(p.data, p.size));
-        }
-        for (const auto& x : poses)
-          groundtruth.push_back({detail::seconds_of(x.header.stamp), to_se3(x)});
-      }
-    } catch (const CdrError& e) {
-      throw InputError(where(ref, name, k, std::nan("")) + ": " + e.what());
+  return plan;
+}
+
+void RecordingSource::Impl::read_camera_info(const Payload& p, const std::string& name) {
+  const auto info = detail::decode_camera_info(p.data, p.size);
+  if (!(info.k[0] > 0.0 && info.k[4] > 0.0)) return;
+  io::CameraHints::Intrinsics in;
+  in.fx = info.k[0];
+  in.fy = info.k[4];
+  in.cx = info.k[2];
+  in.cy = info.k[5];
+  in.width = static_cast<int>(info.width);
+  in.height = static_cast<int>(info.height);
+  if (info.distortion_model == "plumb_bob" || info.distortion_model == "rational_polynomial") {
+    for (std::size_t i = 0; i < 5 && i < info.d.size(); ++i) in.distortion[i] = info.d[i];
+  } else if (!info.distortion_model.empty() &&
+             std::any_of(info.d.begin(), info.d.end(), [](double d) { return d != 0.0; })) {
+    warnings.push_back(file_error(path, "camera_info distortion model '" + info.distortion_model +
+                                            "' is not plumb_bob: distortion ignored"));
+  }
+  hints.intrinsics = in;
+  hints.intrinsics_name = path + ":" + name;
+}
+
+void RecordingSource::Impl::read_groundtruth(
+    const Payload& p, const std::string& gt_type,
+    std::set<std::pair<std::string, std::string>>& tf_pairs) {
+  const TopicOptions& t = options.topics;
+  std::vector<detail::Pose> poses;
+  if (gt_type == "tf2_msgs/msg/TFMessage") {
+    for (const auto& x : detail::decode_tf(p.data, p.size)) {
+      tf_pairs.insert({strip_slash(x.header.frame_id), strip_slash(x.child_frame_id)});
+      if (strip_slash(x.header.frame_id) == strip_slash(t.world_frame) &&
+          strip_slash(x.child_frame_id) == strip_slash(t.camera_frame))
+        poses.push_back(x);
     }
-  });
+  } else if (gt_type == "geometry_msgs/msg/PoseStamped") {
+    poses.push_back(detail::decode_pose_stamped(p.data, p.size));
+  } else if (gt_type == "geometry_msgs/msg/TransformStamped") {
+    poses.push_back(detail::decode_transform_stamped(p.data, p.size));
+  } else {
+    poses.push_back(detail::decode_odometry(p.data, p.size));
+  }
+  for (const auto& x : poses)
+    groundtruth.push_back({detail::seconds_of(x.header.stamp), to_se3(x)});
+}
+
+void RecordingSource::Impl::check_scan(
+    const std::string& gt_type, const std::set<std::pair<std::string, std::string>>& tf_pairs) {
+  const TopicOptions& t = options.topics;
   for (const auto& [name, images] : {std::pair{&t.rgb, &rgb}, std::pair{&t.depth, &depth}})
     if (images->messages.empty())
       throw InputError(file_error(path, "topic '" + *name + "' has no messages"));
@@ -320,6 +338,44 @@ void RecordingSource::Impl::scan() {
                                             "' has no transform " + t.world_frame + " -> " +
                                             t.camera_frame + " (it has " + seen + ")"));
   }
+}
+
+void RecordingSource::Impl::scan() {
+  resolve_topics();
+  const ScanPlan plan = plan_scan();
+  const auto& topics = recording->topics();
+  bool have_info = false;
+  std::set<std::pair<std::string, std::string>> tf_pairs;
+  std::vector<std::size_t> counts(topics.size(), 0);
+  recording->read(plan.wanted, [&](const MessageRef& ref, const Payload& p) {
+    const std::size_t k = counts[ref.topic]++;
+    const int r = plan.role[ref.topic];
+    const std::string& name = topics[ref.topic].name;
+    if (r == ScanPlan::kRgb) return add_image(rgb, ref, p, false);
+    if (r == ScanPlan::kDepth) return add_image(depth, ref, p, true);
+    try {
+      if (r == ScanPlan::kCameraInfo) {
+        if (have_info) return;
+        have_info = true;
+        if (plan.info_type != "sensor_msgs/msg/CameraInfo") {
+          warnings.push_back(file_error(path, "topic '" + name + "' (" + plan.info_type +
+                                                  ") is not a sensor_msgs/msg/CameraInfo: "
+                                                  "intrinsics not taken from it"));
+          return;
+        }
+        read_camera_info(p, name);
+      } else if (r == ScanPlan::kSettings) {
+        if (hints.settings_yaml) return;
+        hints.settings_yaml = detail::decode_string(p.data, p.size);
+        hints.settings_name = path + ":" + name;
+      } else if (r == ScanPlan::kGroundtruth) {
+        read_groundtruth(p, plan.gt_type, tf_pairs);
+      }
+    } catch (const CdrError& e) {
+      throw InputError(where(ref, name, k, std::nan("")) + ": " + e.what());
+    }
+  });
+  check_scan(plan.gt_type, tf_pairs);
   io::sort_by_time_unique(groundtruth);
 }
 

@@ -679,6 +679,160 @@ void LocalMapper::correct(const map::MapCorrection& correction) {
   if (correction_listener_) correction_listener_();
 }
 
+namespace {
+
+/// Every keyframe's pose and covisible keyframes, as they were before a loop correction.
+struct KeyFrameSnapshot {
+  std::unordered_map<map::KeyFrameId, SE3> pose;
+  std::unordered_map<map::KeyFrameId, std::unordered_set<map::KeyFrameId>> linked;
+};
+
+KeyFrameSnapshot snapshot_keyframes(const map::Map& map) {
+  KeyFrameSnapshot before;
+  for (const auto& [id, kf] : map.keyframes()) {
+    before.pose.emplace(id, kf.T_c_w);
+    auto& linked = before.linked[id];
+    for (const auto& kv : kf.covisibility) linked.insert(kv.first);
+  }
+  return before;
+}
+
+/// The loop's new keyframe and its covisible keyframes (the matched one excepted), with the
+/// poses that move them rigidly to where the loop puts the new one.
+struct LoopGroup {
+  std::vector<map::KeyFrameId> members;  // the new keyframe first
+  std::unordered_map<map::KeyFrameId, SE3> corrected;
+};
+
+LoopGroup loop_group(const map::Map& map, const LoopClosure& loop) {
+  const map::KeyFrame* current = map.keyframe(loop.keyframe);
+  LoopGroup group;
+  group.members = {loop.keyframe};
+  for (map::KeyFrameId n : map.best_covisible(loop.keyframe, current->covisibility.size()))
+    if (n != loop.matched) group.members.push_back(n);
+  const SE3 T_cur_w = current->T_c_w;
+  for (map::KeyFrameId g : group.members)
+    group.corrected.emplace(g, map.keyframe(g)->T_c_w * T_cur_w.inverse() * loop.T_c_w);
+  return group;
+}
+
+/// The landmarks of the old place (the matched keyframe and its best covisible keyframes outside
+/// the group), each once, in the order they are first seen.
+struct PlaceLandmarks {
+  std::vector<map::PointId> points;
+  std::vector<map::LineId> lines;
+};
+
+PlaceLandmarks old_place_landmarks(const map::Map& map, const LoopClosure& loop,
+                                   const LoopGroup& group) {
+  std::vector<map::KeyFrameId> old_place = {loop.matched};
+  for (map::KeyFrameId n : map.best_covisible(loop.matched, 10))
+    if (group.corrected.count(n) == 0) old_place.push_back(n);
+  PlaceLandmarks old;
+  std::unordered_set<map::PointId> seen_points;
+  std::unordered_set<map::LineId> seen_lines;
+  for (map::KeyFrameId k : old_place) {
+    const map::KeyFrame* kf = map.keyframe(k);
+    for (map::PointId p : kf->landmarks)
+      if (p != map::kNoId && map.point(p) != nullptr && seen_points.insert(p).second)
+        old.points.push_back(p);
+    for (map::LineId l : kf->line_landmarks)
+      if (l != map::kNoId && map.line(l) != nullptr && seen_lines.insert(l).second)
+        old.lines.push_back(l);
+  }
+  return old;
+}
+
+/// The loop's verified matches: the new keyframe's feature takes the old place's point (its own
+/// point, if any, merged into it). Returns the number of points fused.
+int fuse_verified_matches(map::Map& map, const LoopClosure& loop) {
+  int fused = 0;
+  for (const auto& [feature, point] : loop.matches) {
+    const map::KeyFrame* kf = map.keyframe(loop.keyframe);
+    if (map.point(point) == nullptr || feature < 0 ||
+        static_cast<std::size_t>(feature) >= kf->landmarks.size())
+      continue;
+    if (map.point(point)->observations.count(loop.keyframe) != 0) continue;
+    const map::PointId mine = kf->landmarks[static_cast<std::size_t>(feature)];
+    if (mine == point) continue;
+    if (mine != map::kNoId && map.point(mine) != nullptr)
+      map.replace_point(mine, point);
+    else
+      map.add_observation(point, loop.keyframe, feature);
+    map.update_point_appearance(point);
+    ++fused;
+  }
+  return fused;
+}
+
+/// The essential graph of a loop correction over every keyframe (sorted by id; the first fixed),
+/// starting from the loop's keyframes corrected and the others where they were.
+struct EssentialGraph {
+  std::vector<map::KeyFrameId> ids;
+  std::unordered_map<map::KeyFrameId, int> index;  // keyframe -> pose index
+  optim::PoseGraphProblem graph;
+};
+
+/// Edges: keyframes in order, strong covisibility (weight >= essential_edge_weight), loops;
+/// measured on the poses before the correction, except the connections the loop made (measured
+/// after it).
+EssentialGraph essential_graph(const map::Map& map, const LoopClosure& loop,
+                               const KeyFrameSnapshot& before, const LoopGroup& group,
+                               int essential_edge_weight) {
+  EssentialGraph g;
+  for (const auto& kv : map.keyframes()) g.ids.push_back(kv.first);
+  std::sort(g.ids.begin(), g.ids.end());
+  const auto& corrected = group.corrected;
+  for (map::KeyFrameId id : g.ids) {
+    g.index.emplace(id, static_cast<int>(g.graph.poses.size()));
+    const auto it = corrected.find(id);
+    g.graph.poses.push_back(it != corrected.end() ? it->second : before.pose.at(id));
+    g.graph.fixed.push_back(id == g.ids.front());
+  }
+  const auto pose_before = [&](map::KeyFrameId id) { return before.pose.at(id); };
+  const auto pose_after = [&](map::KeyFrameId id) {
+    const auto it = corrected.find(id);
+    return it != corrected.end() ? it->second : before.pose.at(id);
+  };
+  std::set<std::pair<map::KeyFrameId, map::KeyFrameId>> added;
+  const auto add_edge = [&](map::KeyFrameId a, map::KeyFrameId b, bool loop_connection) {
+    if (a == b || before.pose.count(a) == 0 || before.pose.count(b) == 0) return;
+    const auto key = std::minmax(a, b);
+    if (!added.insert(key).second) return;
+    const SE3 T_a_b = loop_connection ? pose_after(a) * pose_after(b).inverse()
+                                      : pose_before(a) * pose_before(b).inverse();
+    g.graph.edges.push_back({g.index.at(a), g.index.at(b), T_a_b, 1.0});
+  };
+  for (std::size_t k = 1; k < g.ids.size(); ++k) add_edge(g.ids[k - 1], g.ids[k], false);
+  for (map::KeyFrameId id : g.ids) {
+    const map::KeyFrame* kf = map.keyframe(id);
+    for (map::KeyFrameId other : kf->loop_edges) {
+      const bool this_loop = std::minmax(id, other) == std::minmax(loop.keyframe, loop.matched);
+      add_edge(id, other, this_loop);
+    }
+    for (const auto& [other, weight] : kf->covisibility) {
+      const bool was_linked =
+          before.linked.count(id) != 0 && before.linked.at(id).count(other) != 0;
+      const bool across = (corrected.count(id) != 0) != (corrected.count(other) != 0);
+      if (across && !was_linked)
+        add_edge(id, other, true);  // a connection the loop made
+      else if (weight >= essential_edge_weight)
+        add_edge(id, other, false);
+    }
+  }
+  return g;
+}
+
+/// The poses of the graph, by keyframe.
+std::unordered_map<map::KeyFrameId, SE3> graph_poses(const EssentialGraph& g) {
+  std::unordered_map<map::KeyFrameId, SE3> poses;
+  for (map::KeyFrameId id : g.ids)
+    poses.emplace(id, g.graph.poses[static_cast<std::size_t>(g.index.at(id))]);
+  return poses;
+}
+
+}  // namespace
+
 bool LocalMapper::close_loop(const LoopClosure& loop, const LoopOptions& options,
                              LoopEvent& event) {
   Stopwatch watch;
@@ -689,45 +843,17 @@ bool LocalMapper::close_loop(const LoopClosure& loop, const LoopOptions& options
     return false;
   }
   // Every keyframe's pose and covisible set before anything moves.
-  std::unordered_map<map::KeyFrameId, SE3> before;
-  std::unordered_map<map::KeyFrameId, std::unordered_set<map::KeyFrameId>> linked_before;
-  for (const auto& [id, kf] : map_.keyframes()) {
-    before.emplace(id, kf.T_c_w);
-    auto& linked = linked_before[id];
-    for (const auto& kv : kf.covisibility) linked.insert(kv.first);
-  }
+  const KeyFrameSnapshot before = snapshot_keyframes(map_);
   // The new keyframe and its neighbours, moved rigidly to where the loop puts the new one.
-  std::vector<map::KeyFrameId> group = {loop.keyframe};
-  for (map::KeyFrameId n : map_.best_covisible(loop.keyframe, current->covisibility.size()))
-    if (n != loop.matched) group.push_back(n);
+  const LoopGroup group = loop_group(map_, loop);
   const SE3 T_cur_w = current->T_c_w;
-  std::unordered_map<map::KeyFrameId, SE3> corrected;
-  for (map::KeyFrameId g : group)
-    corrected.emplace(g, map_.keyframe(g)->T_c_w * T_cur_w.inverse() * loop.T_c_w);
   event.correction_m =
       (T_cur_w.inverse().translation() - loop.T_c_w.inverse().translation()).norm();
   event.correction_deg =
       rotation_angle(T_cur_w.quaternion() * loop.T_c_w.quaternion().conjugate()) * 180.0 / M_PI;
 
   // The old place's landmarks, fused into the group seen from the corrected poses.
-  std::vector<map::KeyFrameId> old_place = {loop.matched};
-  for (map::KeyFrameId n : map_.best_covisible(loop.matched, 10))
-    if (corrected.count(n) == 0) old_place.push_back(n);
-  std::vector<map::PointId> old_points;
-  std::vector<map::LineId> old_lines;
-  {
-    std::unordered_set<map::PointId> seen_points;
-    std::unordered_set<map::LineId> seen_lines;
-    for (map::KeyFrameId k : old_place) {
-      const map::KeyFrame* kf = map_.keyframe(k);
-      for (map::PointId p : kf->landmarks)
-        if (p != map::kNoId && map_.point(p) != nullptr && seen_points.insert(p).second)
-          old_points.push_back(p);
-      for (map::LineId l : kf->line_landmarks)
-        if (l != map::kNoId && map_.line(l) != nullptr && seen_lines.insert(l).second)
-          old_lines.push_back(l);
-    }
-  }
+  const PlaceLandmarks old = old_place_landmarks(map_, loop, group);
   {
     // The loop's own keyframes move with their landmarks in one step, then take the old
     // place's landmarks: tracking, which works around them, sees a consistent local map now,
@@ -735,86 +861,26 @@ bool LocalMapper::close_loop(const LoopClosure& loop, const LoopOptions& options
     auto lock = map_.write_lock();
     map::MapCorrection local;
     local.listed_only = true;
-    for (const auto& [g, T] : corrected) {
-      local.before.emplace(g, before.at(g));
+    for (const auto& [g, T] : group.corrected) {
+      local.before.emplace(g, before.pose.at(g));
       local.after.emplace(g, T);
     }
     map::apply_correction(map_, local);
     corrected_version_ = map_.version();
-    // The verified matches first: the new keyframe's feature takes the old place's point.
-    for (const auto& [feature, point] : loop.matches) {
-      const map::KeyFrame* kf = map_.keyframe(loop.keyframe);
-      if (map_.point(point) == nullptr || feature < 0 ||
-          static_cast<std::size_t>(feature) >= kf->landmarks.size())
-        continue;
-      if (map_.point(point)->observations.count(loop.keyframe) != 0) continue;
-      const map::PointId mine = kf->landmarks[static_cast<std::size_t>(feature)];
-      if (mine == point) continue;
-      if (mine != map::kNoId && map_.point(mine) != nullptr)
-        map_.replace_point(mine, point);
-      else
-        map_.add_observation(point, loop.keyframe, feature);
-      map_.update_point_appearance(point);
-      ++event.fused_points;
+    // The verified matches first.
+    event.fused_points += fuse_verified_matches(map_, loop);
+    for (map::KeyFrameId g : group.members) {
+      event.fused_points += fuse_into(g, old.points);
+      fuse_lines_into(g, old.lines);
     }
-    for (map::KeyFrameId g : group) {
-      event.fused_points += fuse_into(g, old_points);
-      fuse_lines_into(g, old_lines);
-    }
-    for (map::KeyFrameId g : group) map_.update_covisibility(g);
+    for (map::KeyFrameId g : group.members) map_.update_covisibility(g);
     map_.add_loop_edge(loop.keyframe, loop.matched);
   }
 
-  // The essential graph: keyframes in order, strong covisibility, loops; edges measured on the
-  // poses before the correction, except the connections the loop made (measured after it).
-  std::vector<map::KeyFrameId> ids;
-  for (const auto& kv : map_.keyframes()) ids.push_back(kv.first);
-  std::sort(ids.begin(), ids.end());
-  std::unordered_map<map::KeyFrameId, int> index;
-  optim::PoseGraphProblem graph;
-  for (map::KeyFrameId id : ids) {
-    index.emplace(id, static_cast<int>(graph.poses.size()));
-    const auto it = corrected.find(id);
-    graph.poses.push_back(it != corrected.end() ? it->second : before.at(id));
-    graph.fixed.push_back(id == ids.front());
-  }
-  const auto pose_before = [&](map::KeyFrameId id) { return before.at(id); };
-  const auto pose_after = [&](map::KeyFrameId id) {
-    const auto it = corrected.find(id);
-    return it != corrected.end() ? it->second : before.at(id);
-  };
-  std::set<std::pair<map::KeyFrameId, map::KeyFrameId>> added;
-  const auto add_edge = [&](map::KeyFrameId a, map::KeyFrameId b, bool loop_connection) {
-    if (a == b || before.count(a) == 0 || before.count(b) == 0) return;
-    const auto key = std::minmax(a, b);
-    if (!added.insert(key).second) return;
-    const SE3 T_a_b = loop_connection ? pose_after(a) * pose_after(b).inverse()
-                                      : pose_before(a) * pose_before(b).inverse();
-    graph.edges.push_back({index.at(a), index.at(b), T_a_b, 1.0});
-  };
-  for (std::size_t k = 1; k < ids.size(); ++k) add_edge(ids[k - 1], ids[k], false);
-  for (map::KeyFrameId id : ids) {
-    const map::KeyFrame* kf = map_.keyframe(id);
-    for (map::KeyFrameId other : kf->loop_edges) {
-      const bool this_loop = std::minmax(id, other) == std::minmax(loop.keyframe, loop.matched);
-      add_edge(id, other, this_loop);
-    }
-    for (const auto& [other, weight] : kf->covisibility) {
-      const bool was_linked =
-          linked_before.count(id) != 0 && linked_before.at(id).count(other) != 0;
-      const bool across = (corrected.count(id) != 0) != (corrected.count(other) != 0);
-      if (across && !was_linked)
-        add_edge(id, other, true);  // a connection the loop made
-      else if (weight >= options.essential_edge_weight)
-        add_edge(id, other, false);
-    }
-  }
-  // The graph starts from the map as it now stands: the loop's keyframes corrected, the others
-  // where they were.
-  std::unordered_map<map::KeyFrameId, SE3> now;
-  for (map::KeyFrameId id : ids)
-    now.emplace(id, graph.poses[static_cast<std::size_t>(index.at(id))]);
-  if (optim::optimize_pose_graph(graph, options.pose_graph).failed) {
+  EssentialGraph graph = essential_graph(map_, loop, before, group, options.essential_edge_weight);
+  // The graph starts from the map as it now stands.
+  std::unordered_map<map::KeyFrameId, SE3> now = graph_poses(graph);
+  if (optim::optimize_pose_graph(graph.graph, options.pose_graph).failed) {
     event.pose_graph_failed = true;
     event.correct_ms = watch.elapsed_ms();
     if (correction_listener_) correction_listener_();  // the loop's own keyframes moved
@@ -822,8 +888,7 @@ bool LocalMapper::close_loop(const LoopClosure& loop, const LoopOptions& options
   }
   map::MapCorrection correction;
   correction.before = std::move(now);
-  for (map::KeyFrameId id : ids)
-    correction.after.emplace(id, graph.poses[static_cast<std::size_t>(index.at(id))]);
+  correction.after = graph_poses(graph);
   correct(correction);
   event.correct_ms = watch.elapsed_ms();
   return true;

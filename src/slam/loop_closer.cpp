@@ -43,6 +43,171 @@ SE3 align(const std::vector<Eigen::Vector3d>& from, const std::vector<Eigen::Vec
   return SE3::from_matrix(T);
 }
 
+/// The new keyframe of a loop check, as its verification reads it.
+struct LoopQuery {
+  const PinholeCamera& camera;
+  const map::KeyFrame& keyframe;
+  const std::vector<features::PointFeature>& features;
+  const features::ScalePyramid& pyramid;
+
+  /// Feature i can be matched: it has depth and is not excluded (a moving object's).
+  bool usable(int i) const {
+    return features[static_cast<std::size_t>(i)].has_depth() &&
+           !keyframe.point_excluded(static_cast<std::size_t>(i));
+  }
+};
+
+/// 3D-3D correspondences: the old place's map points (world) against the new keyframe's depth
+/// points (camera), with the feature and the point each one pairs.
+struct PlaceCorrespondences {
+  std::vector<int> feature_of;
+  std::vector<map::PointId> point_of;
+  std::vector<Eigen::Vector3d> p_w, p_c;
+};
+
+/// The correspondences of the vocabulary matches (query: new keyframe, train: old keyframe).
+PlaceCorrespondences correspondences(const LoopQuery& query, const map::Map& map,
+                                     const map::KeyFrame& old,
+                                     const std::vector<features::DescriptorMatch>& matches) {
+  PlaceCorrespondences c;
+  for (const auto& m : matches) {
+    const auto& f = query.features[static_cast<std::size_t>(m.query)];
+    const map::PointId p = old.landmarks[static_cast<std::size_t>(m.train)];
+    c.feature_of.push_back(m.query);
+    c.point_of.push_back(p);
+    c.p_w.push_back(map.point(p)->p_w);
+    c.p_c.push_back(query.camera.unproject(f.keypoint.uv.cast<double>(), f.depth));
+  }
+  return c;
+}
+
+/// How many correspondences the pose T explains (consistent()); their flags in `inlier` when
+/// given.
+int count_inliers(const LoopQuery& query, const PlaceCorrespondences& c, const SE3& T,
+                  std::vector<bool>* inlier) {
+  int n = 0;
+  for (std::size_t k = 0; k < c.p_w.size(); ++k) {
+    const bool ok =
+        consistent(query.camera, query.features[static_cast<std::size_t>(c.feature_of[k])],
+                   query.pyramid, T, c.p_w[k]);
+    n += ok ? 1 : 0;
+    if (inlier) (*inlier)[k] = ok;
+  }
+  return n;
+}
+
+/// A pose and how many correspondences it explains.
+struct CountedPose {
+  int inliers = 0;
+  SE3 T;
+};
+
+/// RANSAC over triples of correspondences (random, seeded: deterministic): the pose explaining
+/// the most of them.
+CountedPose ransac_pose(const LoopQuery& query, const PlaceCorrespondences& c, std::uint32_t seed,
+                        int iterations) {
+  std::mt19937 rng(seed);
+  std::uniform_int_distribution<std::size_t> pick(0, c.p_w.size() - 1);
+  CountedPose best;
+  for (int it = 0; it < iterations; ++it) {
+    const std::size_t a = pick(rng), b = pick(rng), d = pick(rng);
+    if (a == b || b == d || a == d) continue;
+    // Three points far enough apart and not on a line.
+    const Eigen::Vector3d ab = c.p_c[b] - c.p_c[a], ad = c.p_c[d] - c.p_c[a];
+    if (ab.cross(ad).norm() < 0.01) continue;
+    const SE3 T = align({c.p_w[a], c.p_w[b], c.p_w[d]}, {c.p_c[a], c.p_c[b], c.p_c[d]});
+    const int n = count_inliers(query, c, T, nullptr);
+    if (n > best.inliers) {
+      best.inliers = n;
+      best.T = T;
+    }
+  }
+  return best;
+}
+
+/// Refits the pose T on its inliers (twice: the set can grow), keeping a refit only when it
+/// explains at least as many correspondences. `inlier` is working space (of c's size).
+SE3 refit_on_inliers(const LoopQuery& query, const PlaceCorrespondences& c, SE3 T,
+                     std::vector<bool>& inlier) {
+  for (int round = 0; round < 2; ++round) {
+    count_inliers(query, c, T, &inlier);
+    std::vector<Eigen::Vector3d> from, to;
+    for (std::size_t k = 0; k < c.p_w.size(); ++k)
+      if (inlier[k]) {
+        from.push_back(c.p_w[k]);
+        to.push_back(c.p_c[k]);
+      }
+    if (from.size() < 3) break;
+    const SE3 refit = align(from, to);
+    if (count_inliers(query, c, refit, nullptr) >= count_inliers(query, c, T, nullptr)) T = refit;
+  }
+  return T;
+}
+
+/// Pose optimisation of the new keyframe from T against the (feature, map point) pairs.
+optim::PoseOptimizationResult optimise_on(const LoopQuery& query, const map::Map& map,
+                                          const std::vector<std::pair<int, map::PointId>>& pairs,
+                                          const SE3& T, double depth_weight,
+                                          const optim::PoseOptimizerOptions& options) {
+  std::vector<optim::PoseObservation> observations;
+  for (const auto& [feature, point] : pairs)
+    observations.push_back(
+        {map.point(point)->p_w, measurement_of(query.features[static_cast<std::size_t>(feature)],
+                                               query.pyramid, depth_weight)});
+  return optim::optimize_pose(query.camera, T, observations, options);
+}
+
+/// Guided search: the points of the old place (`candidate` and its best covisible keyframes)
+/// projected into the new keyframe at loop.T_c_w, each matched to the closest free usable feature
+/// by descriptor; adds the matches to `loop`.
+void guided_search(const LoopQuery& query, const map::Map& map, map::KeyFrameId candidate,
+                   LoopClosure& loop) {
+  const SE3& T = loop.T_c_w;
+  std::vector<bool> feature_used(query.features.size(), false);
+  std::unordered_set<map::PointId> point_used;
+  for (const auto& [feature, point] : loop.matches) {
+    feature_used[static_cast<std::size_t>(feature)] = true;
+    point_used.insert(point);
+  }
+  std::vector<int> nearby;
+  std::vector<map::KeyFrameId> place = {candidate};
+  for (map::KeyFrameId n : map.best_covisible(candidate, 10)) place.push_back(n);
+  for (map::KeyFrameId k : place) {
+    const map::KeyFrame* other = map.keyframe(k);
+    if (other == nullptr) continue;
+    for (std::size_t j = 0; j < other->landmarks.size(); ++j) {
+      const map::PointId pid = other->landmarks[j];
+      if (pid == map::kNoId || other->point_excluded(j) || point_used.count(pid) != 0) continue;
+      const map::MapPoint* mp = map.point(pid);
+      if (mp == nullptr) continue;
+      point_used.insert(pid);
+      const Eigen::Vector3d pc = T * mp->p_w;
+      if (pc.z() <= 0.0) continue;
+      const Eigen::Vector2d uv = query.camera.project(pc);
+      if (!query.camera.in_image(uv)) continue;
+      const int level = query.pyramid.predict_level(pc.norm(), std::max(mp->max_distance, 1e-3));
+      query.keyframe.features->grid.query(
+          static_cast<float>(uv.x()), static_cast<float>(uv.y()),
+          static_cast<float>(3.0 * query.pyramid.scale[static_cast<std::size_t>(level)]),
+          std::max(0, level - 1), level + 1, nearby);
+      int best_distance = 51;
+      int best_feature = -1;
+      for (int i : nearby) {
+        if (feature_used[static_cast<std::size_t>(i)] || !query.usable(i)) continue;
+        const features::PointFeature& f = query.features[static_cast<std::size_t>(i)];
+        const int d = features::hamming_distance(mp->descriptor, f.descriptor);
+        if (d < best_distance && consistent(query.camera, f, query.pyramid, T, mp->p_w)) {
+          best_distance = d;
+          best_feature = i;
+        }
+      }
+      if (best_feature < 0) continue;
+      feature_used[static_cast<std::size_t>(best_feature)] = true;
+      loop.matches.emplace_back(best_feature, pid);
+    }
+  }
+}
+
 }  // namespace
 
 LoopCloser::LoopCloser(const PinholeCamera& camera, const LoopOptions& options,
@@ -251,15 +416,12 @@ std::optional<LoopClosure> LoopCloser::verify(map::KeyFrameId id, map::KeyFrameI
   }
   event.timestamp = kf->timestamp;
   event.matched_timestamp = old->timestamp;
-  const auto& features = kf->features->points;
-  const auto& pyramid = *kf->features->pyramid;
-  const auto usable = [&](int i) {
-    return features[static_cast<std::size_t>(i)].has_depth() &&
-           !kf->point_excluded(static_cast<std::size_t>(i));
-  };
+  const LoopQuery query{camera_, *kf, kf->features->points, *kf->features->pyramid};
   const auto matches = place::match_by_words(
       kf->bow->direct, kf->features->point_descriptors(), old->bow->direct,
-      old->features->point_descriptors(), place::WordMatchOptions{}, usable, [&](int j) {
+      old->features->point_descriptors(), place::WordMatchOptions{},
+      [&](int i) { return query.usable(i); },
+      [&](int j) {
         const map::PointId p = old->landmarks[static_cast<std::size_t>(j)];
         return p != map::kNoId && map_.point(p) != nullptr &&
                !old->point_excluded(static_cast<std::size_t>(j));
@@ -269,136 +431,40 @@ std::optional<LoopClosure> LoopCloser::verify(map::KeyFrameId id, map::KeyFrameI
     event.reason = "too few matches through the vocabulary";
     return std::nullopt;
   }
-  // 3D-3D: the old place's map points (world) onto the new keyframe's depth points (camera).
-  std::vector<int> feature_of;
-  std::vector<map::PointId> point_of;
-  std::vector<Eigen::Vector3d> p_w, p_c;
-  for (const auto& m : matches) {
-    const auto& f = features[static_cast<std::size_t>(m.query)];
-    const map::PointId p = old->landmarks[static_cast<std::size_t>(m.train)];
-    feature_of.push_back(m.query);
-    point_of.push_back(p);
-    p_w.push_back(map_.point(p)->p_w);
-    p_c.push_back(camera_.unproject(f.keypoint.uv.cast<double>(), f.depth));
-  }
-  const auto count_inliers = [&](const SE3& T, std::vector<bool>* inlier) {
-    int n = 0;
-    for (std::size_t k = 0; k < p_w.size(); ++k) {
-      const bool ok = consistent(camera_, features[static_cast<std::size_t>(feature_of[k])],
-                                 pyramid, T, p_w[k]);
-      n += ok ? 1 : 0;
-      if (inlier) (*inlier)[k] = ok;
-    }
-    return n;
-  };
-  std::mt19937 rng(static_cast<std::uint32_t>(id * 7919 + candidate));
-  std::uniform_int_distribution<std::size_t> pick(0, p_w.size() - 1);
-  int best = 0;
-  SE3 best_T;
-  for (int it = 0; it < options_.ransac_iterations; ++it) {
-    const std::size_t a = pick(rng), b = pick(rng), c = pick(rng);
-    if (a == b || b == c || a == c) continue;
-    // Three points far enough apart and not on a line.
-    const Eigen::Vector3d ab = p_c[b] - p_c[a], ac = p_c[c] - p_c[a];
-    if (ab.cross(ac).norm() < 0.01) continue;
-    const SE3 T = align({p_w[a], p_w[b], p_w[c]}, {p_c[a], p_c[b], p_c[c]});
-    const int n = count_inliers(T, nullptr);
-    if (n > best) {
-      best = n;
-      best_T = T;
-    }
-  }
-  event.ransac_inliers = best;
-  if (best < options_.min_ransac_inliers) {
+  const PlaceCorrespondences c = correspondences(query, map_, *old, matches);
+  const CountedPose ransac = ransac_pose(
+      query, c, static_cast<std::uint32_t>(id * 7919 + candidate), options_.ransac_iterations);
+  event.ransac_inliers = ransac.inliers;
+  if (ransac.inliers < options_.min_ransac_inliers) {
     event.reason = "too few RANSAC inliers";
     return std::nullopt;
   }
-  // Refit on the inliers (twice: the set can grow).
-  std::vector<bool> inlier(p_w.size(), false);
-  for (int round = 0; round < 2; ++round) {
-    count_inliers(best_T, &inlier);
-    std::vector<Eigen::Vector3d> from, to;
-    for (std::size_t k = 0; k < p_w.size(); ++k)
-      if (inlier[k]) {
-        from.push_back(p_w[k]);
-        to.push_back(p_c[k]);
-      }
-    if (from.size() < 3) break;
-    const SE3 refit = align(from, to);
-    if (count_inliers(refit, nullptr) >= count_inliers(best_T, nullptr)) best_T = refit;
-  }
-  count_inliers(best_T, &inlier);
+  std::vector<bool> inlier(c.p_w.size(), false);
+  SE3 best_T = refit_on_inliers(query, c, ransac.T, inlier);
+  count_inliers(query, c, best_T, &inlier);
   // Then the pose that best explains the inliers' image positions and depths (RANSAC's fit weighs
   // every 3D point alike, though depth noise grows with the square of the distance).
-  const auto optimise = [&](const std::vector<std::pair<int, map::PointId>>& pairs, const SE3& T) {
-    std::vector<optim::PoseObservation> observations;
-    for (const auto& [feature, point] : pairs)
-      observations.push_back(
-          {map_.point(point)->p_w,
-           measurement_of(features[static_cast<std::size_t>(feature)], pyramid, depth_weight_)});
-    return optim::optimize_pose(camera_, T, observations, tracker_options_.pose);
-  };
   {
     std::vector<std::pair<int, map::PointId>> pairs;
-    for (std::size_t k = 0; k < p_w.size(); ++k)
-      if (inlier[k]) pairs.emplace_back(feature_of[k], point_of[k]);
+    for (std::size_t k = 0; k < c.p_w.size(); ++k)
+      if (inlier[k]) pairs.emplace_back(c.feature_of[k], c.point_of[k]);
     // Without a usable solution the RANSAC pose stands; the inlier count below judges it.
-    if (const auto refined = optimise(pairs, best_T); !refined.failed) best_T = refined.T_c_w;
-    count_inliers(best_T, &inlier);
+    if (const auto refined =
+            optimise_on(query, map_, pairs, best_T, depth_weight_, tracker_options_.pose);
+        !refined.failed)
+      best_T = refined.T_c_w;
+    count_inliers(query, c, best_T, &inlier);
   }
   LoopClosure loop;
   loop.keyframe = id;
   loop.matched = candidate;
   loop.T_c_w = best_T;
-  std::vector<bool> feature_used(features.size(), false);
-  std::unordered_set<map::PointId> point_used;
-  for (std::size_t k = 0; k < p_w.size(); ++k)
-    if (inlier[k]) {
-      loop.matches.emplace_back(feature_of[k], point_of[k]);
-      feature_used[static_cast<std::size_t>(feature_of[k])] = true;
-      point_used.insert(point_of[k]);
-    }
-  // Guided search: the old neighbourhood's points projected into the new keyframe.
-  std::vector<int> nearby;
-  std::vector<map::KeyFrameId> place = {candidate};
-  for (map::KeyFrameId n : map_.best_covisible(candidate, 10)) place.push_back(n);
-  for (map::KeyFrameId k : place) {
-    const map::KeyFrame* other = map_.keyframe(k);
-    if (other == nullptr) continue;
-    for (std::size_t j = 0; j < other->landmarks.size(); ++j) {
-      const map::PointId pid = other->landmarks[j];
-      if (pid == map::kNoId || other->point_excluded(j) || point_used.count(pid) != 0) continue;
-      const map::MapPoint* mp = map_.point(pid);
-      if (mp == nullptr) continue;
-      point_used.insert(pid);
-      const Eigen::Vector3d pc = best_T * mp->p_w;
-      if (pc.z() <= 0.0) continue;
-      const Eigen::Vector2d uv = camera_.project(pc);
-      if (!camera_.in_image(uv)) continue;
-      const int level = pyramid.predict_level(pc.norm(), std::max(mp->max_distance, 1e-3));
-      kf->features->grid.query(
-          static_cast<float>(uv.x()), static_cast<float>(uv.y()),
-          static_cast<float>(3.0 * pyramid.scale[static_cast<std::size_t>(level)]),
-          std::max(0, level - 1), level + 1, nearby);
-      int best_distance = 51;
-      int best_feature = -1;
-      for (int i : nearby) {
-        if (feature_used[static_cast<std::size_t>(i)] || !usable(i)) continue;
-        const int d = features::hamming_distance(mp->descriptor,
-                                                 features[static_cast<std::size_t>(i)].descriptor);
-        if (d < best_distance &&
-            consistent(camera_, features[static_cast<std::size_t>(i)], pyramid, best_T, mp->p_w)) {
-          best_distance = d;
-          best_feature = i;
-        }
-      }
-      if (best_feature < 0) continue;
-      feature_used[static_cast<std::size_t>(best_feature)] = true;
-      loop.matches.emplace_back(best_feature, pid);
-    }
-  }
+  for (std::size_t k = 0; k < c.p_w.size(); ++k)
+    if (inlier[k]) loop.matches.emplace_back(c.feature_of[k], c.point_of[k]);
+  guided_search(query, map_, candidate, loop);
   // The final pose from every match; outliers leave.
-  const optim::PoseOptimizationResult refined = optimise(loop.matches, best_T);
+  const optim::PoseOptimizationResult refined =
+      optimise_on(query, map_, loop.matches, best_T, depth_weight_, tracker_options_.pose);
   loop.T_c_w = refined.T_c_w;
   std::vector<std::pair<int, map::PointId>> kept;
   for (std::size_t k = 0; k < loop.matches.size(); ++k)

@@ -24,108 +24,136 @@ std::optional<std::pair<Eigen::Vector3d, Eigen::Vector3d>> onto_line(
   return std::make_pair(onto(before.start), onto(before.end));
 }
 
+/// Builds a MapAdjustment in steps: the local keyframes' poses, then their points, lines and
+/// planes with every observation, each observer's pose added on first use (fixed unless local;
+/// the map's first keyframe always fixed).
+class AdjustmentBuilder {
+ public:
+  AdjustmentBuilder(const map::Map& map, const std::vector<map::KeyFrameId>& local,
+                    MapAdjustment& a)
+      : map_(map), local_(local), local_set_(local.begin(), local.end()), a_(a) {
+    first_keyframe_ = map::kNoId;
+    for (const auto& kv : map.keyframes()) first_keyframe_ = std::min(first_keyframe_, kv.first);
+    for (map::KeyFrameId kf_id : local) add_pose(kf_id, false);
+  }
+
+  /// The points the local keyframes see, with every observation.
+  void add_points(double depth_weight) {
+    auto& problem = a_.problem;
+    auto& point_ids = a_.point_ids;
+    std::unordered_set<map::PointId> seen;
+    for (map::KeyFrameId kf_id : local_) {
+      for (map::PointId pid : map_.keyframe(kf_id)->landmarks) {
+        if (pid == map::kNoId || seen.count(pid) != 0) continue;
+        const map::MapPoint* mp = map_.point(pid);
+        if (mp == nullptr) continue;
+        seen.insert(pid);
+        problem.points.push_back(mp->p_w);
+        point_ids.push_back(pid);
+      }
+    }
+    for (std::size_t k = 0; k < point_ids.size(); ++k) {
+      const map::MapPoint* mp = map_.point(point_ids[k]);
+      for (const auto& [kf_id, index] : mp->observations) {
+        const map::KeyFrame* kf = map_.keyframe(kf_id);
+        if (kf == nullptr) continue;
+        optim::BundleAdjustmentProblem::Observation obs;
+        obs.pose = add_observer(kf_id);
+        obs.point = static_cast<int>(k);
+        obs.measurement = measurement_of(kf->features->points[static_cast<std::size_t>(index)],
+                                         *kf->features->pyramid, depth_weight);
+        problem.observations.push_back(obs);
+        a_.observation_ids.emplace_back(kf_id, point_ids[k]);
+      }
+    }
+  }
+
+  /// The lines of the local keyframes, with every observation.
+  void add_lines(const TrackerOptions& tracker) {
+    auto& problem = a_.problem;
+    auto& line_ids = a_.line_ids;
+    std::unordered_set<map::LineId> seen;
+    for (map::KeyFrameId kf_id : local_)
+      for (map::LineId lid : map_.keyframe(kf_id)->line_landmarks)
+        if (lid != map::kNoId && map_.line(lid) != nullptr && seen.insert(lid).second)
+          line_ids.push_back(lid);
+    for (std::size_t k = 0; k < line_ids.size(); ++k) {
+      const map::MapLine* ml = map_.line(line_ids[k]);
+      problem.lines.push_back({ml->start_w, ml->end_w});
+      for (const auto& [kf_id, index] : ml->observations) {
+        const map::KeyFrame* kf = map_.keyframe(kf_id);
+        if (kf == nullptr) continue;
+        optim::BundleAdjustmentProblem::LineObservation obs;
+        obs.pose = add_observer(kf_id);
+        obs.line = static_cast<int>(k);
+        obs.measurement = line_measurement_of(kf->features->lines[static_cast<std::size_t>(index)],
+                                              tracker.line_sigma);
+        problem.line_observations.push_back(obs);
+        a_.line_observation_ids.emplace_back(kf_id, line_ids[k]);
+      }
+    }
+  }
+
+  /// The planes the local keyframes see, with every observation.
+  void add_planes(const TrackerOptions& tracker) {
+    auto& problem = a_.problem;
+    auto& plane_ids = a_.plane_ids;
+    std::unordered_set<map::PlaneId> seen;
+    for (map::KeyFrameId kf_id : local_)
+      for (map::PlaneId pid : map_.keyframe(kf_id)->plane_landmarks)
+        if (pid != map::kNoId && map_.plane(pid) != nullptr && seen.insert(pid).second)
+          plane_ids.push_back(pid);
+    for (std::size_t k = 0; k < plane_ids.size(); ++k) {
+      const map::MapPlane* mp = map_.plane(plane_ids[k]);
+      problem.planes.push_back(mp->coefficients());
+      for (const auto& [kf_id, index] : mp->observations) {
+        const map::KeyFrame* kf = map_.keyframe(kf_id);
+        if (kf == nullptr) continue;
+        optim::BundleAdjustmentProblem::PlaneObservation obs;
+        obs.pose = add_observer(kf_id);
+        obs.plane = static_cast<int>(k);
+        obs.measurement =
+            plane_measurement_of(kf->features->planes[static_cast<std::size_t>(index)],
+                                 tracker.plane_angle_sigma_deg, tracker.plane_distance_sigma);
+        problem.plane_observations.push_back(obs);
+        a_.plane_observation_ids.emplace_back(kf_id, plane_ids[k]);
+      }
+    }
+  }
+
+ private:
+  /// The index of the keyframe's pose, added (fixed as asked, or when it is the first keyframe)
+  /// when it is new.
+  int add_pose(map::KeyFrameId kf_id, bool fixed) {
+    auto& problem = a_.problem;
+    const auto [it, inserted] =
+        a_.pose_index.emplace(kf_id, static_cast<int>(problem.poses.size()));
+    if (inserted) {
+      problem.poses.push_back(map_.keyframe(kf_id)->T_c_w);
+      problem.pose_fixed.push_back(fixed || kf_id == first_keyframe_);
+    }
+    return it->second;
+  }
+  /// The pose index of an observing keyframe: fixed unless local.
+  int add_observer(map::KeyFrameId kf_id) { return add_pose(kf_id, local_set_.count(kf_id) == 0); }
+
+  const map::Map& map_;
+  const std::vector<map::KeyFrameId>& local_;
+  std::unordered_set<map::KeyFrameId> local_set_;
+  MapAdjustment& a_;
+  map::KeyFrameId first_keyframe_ = map::kNoId;
+};
+
 }  // namespace
 
 MapAdjustment build_adjustment(const map::Map& map, const std::vector<map::KeyFrameId>& local,
                                double depth_weight, const TrackerOptions& tracker) {
-  std::unordered_set<map::KeyFrameId> local_set(local.begin(), local.end());
-
   MapAdjustment a;
-  auto& problem = a.problem;
-  auto& pose_index = a.pose_index;
-  auto& point_ids = a.point_ids;
-  auto& observation_ids = a.observation_ids;
-  std::unordered_map<map::PointId, int> point_index;
-  const map::KeyFrameId first_keyframe = [&] {
-    map::KeyFrameId first = map::kNoId;
-    for (const auto& kv : map.keyframes()) first = std::min(first, kv.first);
-    return first;
-  }();
-  const auto add_pose = [&](map::KeyFrameId kf_id, bool fixed) {
-    const auto [it, inserted] = pose_index.emplace(kf_id, static_cast<int>(problem.poses.size()));
-    if (inserted) {
-      problem.poses.push_back(map.keyframe(kf_id)->T_c_w);
-      problem.pose_fixed.push_back(fixed || kf_id == first_keyframe);
-    }
-    return it->second;
-  };
-  for (map::KeyFrameId kf_id : local) add_pose(kf_id, false);
-  for (map::KeyFrameId kf_id : local) {
-    for (map::PointId pid : map.keyframe(kf_id)->landmarks) {
-      if (pid == map::kNoId || point_index.count(pid) != 0) continue;
-      const map::MapPoint* mp = map.point(pid);
-      if (mp == nullptr) continue;
-      point_index.emplace(pid, static_cast<int>(problem.points.size()));
-      problem.points.push_back(mp->p_w);
-      point_ids.push_back(pid);
-    }
-  }
-  for (std::size_t k = 0; k < point_ids.size(); ++k) {
-    const map::MapPoint* mp = map.point(point_ids[k]);
-    for (const auto& [kf_id, index] : mp->observations) {
-      const map::KeyFrame* kf = map.keyframe(kf_id);
-      if (kf == nullptr) continue;
-      optim::BundleAdjustmentProblem::Observation obs;
-      obs.pose = add_pose(kf_id, local_set.count(kf_id) == 0);
-      obs.point = static_cast<int>(k);
-      obs.measurement = measurement_of(kf->features->points[static_cast<std::size_t>(index)],
-                                       *kf->features->pyramid, depth_weight);
-      problem.observations.push_back(obs);
-      observation_ids.emplace_back(kf_id, point_ids[k]);
-    }
-  }
-  // Lines of the local keyframes, with every observation.
-  auto& line_ids = a.line_ids;
-  auto& line_observation_ids = a.line_observation_ids;
-  {
-    std::unordered_set<map::LineId> seen;
-    for (map::KeyFrameId kf_id : local)
-      for (map::LineId lid : map.keyframe(kf_id)->line_landmarks)
-        if (lid != map::kNoId && map.line(lid) != nullptr && seen.insert(lid).second)
-          line_ids.push_back(lid);
-  }
-  for (std::size_t k = 0; k < line_ids.size(); ++k) {
-    const map::MapLine* ml = map.line(line_ids[k]);
-    problem.lines.push_back({ml->start_w, ml->end_w});
-    for (const auto& [kf_id, index] : ml->observations) {
-      const map::KeyFrame* kf = map.keyframe(kf_id);
-      if (kf == nullptr) continue;
-      optim::BundleAdjustmentProblem::LineObservation obs;
-      obs.pose = add_pose(kf_id, local_set.count(kf_id) == 0);
-      obs.line = static_cast<int>(k);
-      obs.measurement = line_measurement_of(kf->features->lines[static_cast<std::size_t>(index)],
-                                            tracker.line_sigma);
-      problem.line_observations.push_back(obs);
-      line_observation_ids.emplace_back(kf_id, line_ids[k]);
-    }
-  }
-  // Planes seen by the local keyframes, with every observation (other keyframes fixed).
-  auto& plane_ids = a.plane_ids;
-  auto& plane_observation_ids = a.plane_observation_ids;
-  {
-    std::unordered_set<map::PlaneId> seen;
-    for (map::KeyFrameId kf_id : local)
-      for (map::PlaneId pid : map.keyframe(kf_id)->plane_landmarks)
-        if (pid != map::kNoId && map.plane(pid) != nullptr && seen.insert(pid).second)
-          plane_ids.push_back(pid);
-  }
-  for (std::size_t k = 0; k < plane_ids.size(); ++k) {
-    const map::MapPlane* mp = map.plane(plane_ids[k]);
-    problem.planes.push_back(mp->coefficients());
-    for (const auto& [kf_id, index] : mp->observations) {
-      const map::KeyFrame* kf = map.keyframe(kf_id);
-      if (kf == nullptr) continue;
-      optim::BundleAdjustmentProblem::PlaneObservation obs;
-      obs.pose = add_pose(kf_id, local_set.count(kf_id) == 0);
-      obs.plane = static_cast<int>(k);
-      obs.measurement =
-          plane_measurement_of(kf->features->planes[static_cast<std::size_t>(index)],
-                               tracker.plane_angle_sigma_deg, tracker.plane_distance_sigma);
-      problem.plane_observations.push_back(obs);
-      plane_observation_ids.emplace_back(kf_id, plane_ids[k]);
-    }
-  }
-  a.lines_before = problem.lines;
+  AdjustmentBuilder builder(map, local, a);
+  builder.add_points(depth_weight);
+  builder.add_lines(tracker);
+  builder.add_planes(tracker);
+  a.lines_before = a.problem.lines;
   return a;
 }
 

@@ -136,6 +136,65 @@ void make_directory(const std::filesystem::path& dir) {
         dir.string(), "cannot create directory" + (ec ? ": " + ec.message() : std::string())));
 }
 
+/// Removes the label images (and labels.txt) an earlier sequence left in this folder: they would
+/// be mistaken for this one's (other objects, other frames). Only PNGs go (and the folder when
+/// that empties it), so that nothing else a user keeps there is lost.
+void remove_stale_labels(const std::filesystem::path& labels_dir,
+                         const std::filesystem::path& labels_list) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  fs::remove(labels_list, ec);
+  if (fs::is_directory(labels_dir, ec)) {
+    std::vector<fs::path> stale;
+    for (const auto& entry : fs::directory_iterator(labels_dir, ec))
+      if (entry.is_regular_file(ec) && entry.path().extension() == ".png")
+        stale.push_back(entry.path());
+    for (const fs::path& path : stale) fs::remove(path, ec);
+    fs::remove(labels_dir, ec);  // fails, as it should, when something else is left
+  }
+}
+
+/// The camera's settings file (camera.yaml).
+void write_camera_yaml(const std::filesystem::path& path, const PinholeCamera& camera) {
+  std::ofstream out = open_output(path);
+  out << "camera:\n"
+      << "  fx: " << format_double(camera.fx) << "\n"
+      << "  fy: " << format_double(camera.fy) << "\n"
+      << "  cx: " << format_double(camera.cx) << "\n"
+      << "  cy: " << format_double(camera.cy) << "\n"
+      << "  width: " << camera.width << "\n"
+      << "  height: " << camera.height << "\n"
+      << "  depth_factor: " << format_double(camera.depth_factor) << "\n"
+      << "  bf: " << format_double(camera.bf) << "\n";
+  if (camera.readout_time != 0.0)
+    out << "  readout_time: " << format_double(camera.readout_time) << "\n";
+  close_output(out, path);
+}
+
+/// The depth image on disk: metres times depth_factor, rounded, 0 beyond 16 bits.
+cv::Mat depth_image(const cv::Mat& depth, double depth_factor) {
+  cv::Mat depth16(depth.size(), CV_16UC1);
+  for (int y = 0; y < depth.rows; ++y) {
+    const float* src = depth.ptr<float>(y);
+    std::uint16_t* dst = depth16.ptr<std::uint16_t>(y);
+    for (int x = 0; x < depth.cols; ++x) {
+      const double raw = std::round(src[x] * depth_factor);
+      dst[x] = static_cast<std::uint16_t>(raw > 65535.0 ? 0.0 : std::max(raw, 0.0));
+    }
+  }
+  return depth16;
+}
+
+/// A line of groundtruth.txt: the stamp and the pose T_w_c (tx ty tz qx qy qz qw).
+std::string groundtruth_line(const std::string& stamp, const SE3& T) {
+  const Eigen::Vector3d& p = T.translation();
+  const Eigen::Quaterniond& q = T.quaternion();
+  char line[256];
+  std::snprintf(line, sizeof(line), "%s %.9f %.9f %.9f %.9f %.9f %.9f %.9f\n", stamp.c_str(), p.x(),
+                p.y(), p.z(), q.x(), q.y(), q.z(), q.w());
+  return line;
+}
+
 }  // namespace
 
 cv::Mat read_label_image(const std::string& path) {
@@ -202,41 +261,12 @@ void write_sequence(const std::string& directory, const SynthOptions& options,
   for (const fs::path& dir : {root, root / "rgb", root / "depth"}) make_directory(dir);
   const bool with_objects = checked.dynamic.enabled;
   const fs::path labels_dir = root / "labels", labels_list = root / "labels.txt";
-  {
-    // Label images left by an earlier sequence in this folder (other objects, other frames)
-    // would be mistaken for this one's. Only PNGs go (and the folder when that empties it), so
-    // that nothing else a user keeps there is lost.
-    std::error_code ec;
-    fs::remove(labels_list, ec);
-    if (fs::is_directory(labels_dir, ec)) {
-      std::vector<fs::path> stale;
-      for (const auto& entry : fs::directory_iterator(labels_dir, ec))
-        if (entry.is_regular_file(ec) && entry.path().extension() == ".png")
-          stale.push_back(entry.path());
-      for (const fs::path& path : stale) fs::remove(path, ec);
-      fs::remove(labels_dir, ec);  // fails, as it should, when something else is left
-    }
-  }
+  remove_stale_labels(labels_dir, labels_list);
   if (with_objects) make_directory(labels_dir);
   const SyntheticSequence sequence(checked);
   const PinholeCamera camera = sequence.camera();
 
-  {
-    const fs::path path = root / "camera.yaml";
-    std::ofstream out = open_output(path);
-    out << "camera:\n"
-        << "  fx: " << format_double(camera.fx) << "\n"
-        << "  fy: " << format_double(camera.fy) << "\n"
-        << "  cx: " << format_double(camera.cx) << "\n"
-        << "  cy: " << format_double(camera.cy) << "\n"
-        << "  width: " << camera.width << "\n"
-        << "  height: " << camera.height << "\n"
-        << "  depth_factor: " << format_double(camera.depth_factor) << "\n"
-        << "  bf: " << format_double(camera.bf) << "\n";
-    if (camera.readout_time != 0.0)
-      out << "  readout_time: " << format_double(camera.readout_time) << "\n";
-    close_output(out, path);
-  }
+  write_camera_yaml(root / "camera.yaml", camera);
 
   const fs::path rgb_list = root / "rgb.txt", depth_list = root / "depth.txt",
                  gt_list = root / "groundtruth.txt";
@@ -266,26 +296,11 @@ void write_sequence(const std::string& directory, const SynthOptions& options,
   for (int i = 0; i < n; ++i) {
     const std::string stamp = format_timestamp(sequence.timestamp(i));
     const RenderedFrame frame = sequence.frame(i);
-    cv::Mat depth16(frame.depth.size(), CV_16UC1);
-    for (int y = 0; y < frame.depth.rows; ++y) {
-      const float* src = frame.depth.ptr<float>(y);
-      std::uint16_t* dst = depth16.ptr<std::uint16_t>(y);
-      for (int x = 0; x < frame.depth.cols; ++x) {
-        const double raw = std::round(src[x] * camera.depth_factor);
-        dst[x] = static_cast<std::uint16_t>(raw > 65535.0 ? 0.0 : std::max(raw, 0.0));
-      }
-    }
     write_image(root / "rgb" / (stamp + ".png"), frame.rgb);
-    write_image(root / "depth" / (stamp + ".png"), depth16);
+    write_image(root / "depth" / (stamp + ".png"), depth_image(frame.depth, camera.depth_factor));
     rgb_out << stamp << " rgb/" << stamp << ".png\n";
     depth_out << stamp << " depth/" << stamp << ".png\n";
-    const SE3& T = sequence.T_w_c(i);
-    const Eigen::Vector3d& p = T.translation();
-    const Eigen::Quaterniond& q = T.quaternion();
-    char line[256];
-    std::snprintf(line, sizeof(line), "%s %.9f %.9f %.9f %.9f %.9f %.9f %.9f\n", stamp.c_str(),
-                  p.x(), p.y(), p.z(), q.x(), q.y(), q.z(), q.w());
-    gt_out << line;
+    gt_out << groundtruth_line(stamp, sequence.T_w_c(i));
     detections.frames.push_back(sequence.oracle_detections(i, frame, min_pixels));
     if (with_objects) {
       objects_json += (i == 0 ? "\n" : ",\n") +
