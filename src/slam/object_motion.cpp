@@ -268,24 +268,21 @@ TrackEvidence track_evidence(const ObjectDecision& decision, const std::string& 
   return out;
 }
 
-std::vector<Eigen::Vector4d> planes_in_world(const std::vector<features::PlaneFeature>& planes,
-                                             const SE3& T_c_w) {
-  const SE3 T_w_c = T_c_w.inverse();
-  std::vector<Eigen::Vector4d> planes_w;
+ConstraintFrame constraint_frame(const std::vector<features::PlaneFeature>& planes,
+                                 const SE3& T_c_w, const SE3& T_ref_w) {
+  ConstraintFrame out{planes, {}, T_ref_w.inverse(), T_c_w.inverse()};
   for (const auto& p : planes) {
-    const Eigen::Vector3d n_w = T_w_c.rotation() * p.normal;
-    planes_w.emplace_back(n_w.x(), n_w.y(), n_w.z(), p.d + p.normal.dot(T_c_w.translation()));
+    const Eigen::Vector3d n_w = out.T_w_c.rotation() * p.normal;
+    out.planes_w.emplace_back(n_w.x(), n_w.y(), n_w.z(), p.d + p.normal.dot(T_c_w.translation()));
   }
-  return planes_w;
+  return out;
 }
 
 ConstraintDecision check_box_constraint(std::size_t b, const ObjectBox& box,
                                         const std::vector<MotionMatch>& matches,
-                                        const std::vector<features::PlaneFeature>& planes,
-                                        const std::vector<Eigen::Vector4d>& planes_w,
-                                        const SE3& T_w_ref, const SE3& T_w_c,
-                                        const PinholeCamera& camera,
+                                        const ConstraintFrame& frame, const PinholeCamera& camera,
                                         const DynamicsOptions& options) {
+  const auto& planes = frame.planes;
   std::vector<const MotionMatch*> object;
   for (const MotionMatch& m : matches)
     if (m.box == static_cast<int>(b)) object.push_back(&m);
@@ -301,10 +298,11 @@ ConstraintDecision check_box_constraint(std::size_t b, const ObjectBox& box,
         inside_only = false;
     }
     if (inside_only) continue;
-    candidates.push_back(planes_w[k]);
+    candidates.push_back(frame.planes_w[k]);
     index.push_back(static_cast<int>(k));
   }
-  ConstraintDecision c = check_moving_constraint(object, candidates, T_w_ref, T_w_c, options);
+  ConstraintDecision c =
+      check_moving_constraint(object, candidates, frame.T_w_ref, frame.T_w_c, options);
   if (c.plane >= 0) c.plane = index[static_cast<std::size_t>(c.plane)];
   return c;
 }
@@ -313,8 +311,7 @@ ConstraintMeasurements constraint_measurements(const std::vector<MotionMatch>& m
                                                const std::vector<ObjectState>& state,
                                                const FeatureBoxes& boxes,
                                                const std::vector<ConstraintDecision>& constraints,
-                                               const std::vector<features::PlaneFeature>& planes,
-                                               const SE3& T_w_ref, const SE3& T_w_c,
+                                               const ConstraintFrame& frame,
                                                const DynamicsOptions& opt) {
   ConstraintMeasurements out;
   for (const MotionMatch& m : matches) {
@@ -326,11 +323,12 @@ ConstraintMeasurements constraint_measurements(const std::vector<MotionMatch>& m
     if (label_for(mask, state) != FeatureLabel::kConstrained) continue;  // also in a dynamic box
     const int plane = constraints[b].plane;
     if (plane < 0) continue;
-    const Eigen::Vector3d n_w = T_w_c.rotation() * planes[static_cast<std::size_t>(plane)].normal;
+    const Eigen::Vector3d n_w =
+        frame.T_w_c.rotation() * frame.planes[static_cast<std::size_t>(plane)].normal;
     if (!m.line) {
       if (!m.ref_c[0] || !m.cur_c[0]) continue;
       optim::ConstrainedPointMeasurement c;
-      c.p_last_w = T_w_ref * (*m.ref_c[0]);
+      c.p_last_w = frame.T_w_ref * (*m.ref_c[0]);
       c.p_c = *m.cur_c[0];
       c.n_w = n_w;
       c.information = 1.0 / (opt.constraint_point_sigma * opt.constraint_point_sigma);
@@ -338,7 +336,7 @@ ConstraintMeasurements constraint_measurements(const std::vector<MotionMatch>& m
     } else {
       if (!m.ref_c[0] || !m.ref_c[1] || !m.cur_c[0] || !m.cur_c[1]) continue;
       optim::ConstrainedLineMeasurement c;
-      c.s_last_w = T_w_ref.rotation() * (*m.ref_c[1] - *m.ref_c[0]);
+      c.s_last_w = frame.T_w_ref.rotation() * (*m.ref_c[1] - *m.ref_c[0]);
       c.s_c = *m.cur_c[1] - *m.cur_c[0];
       c.n_w = n_w;
       c.information = 1.0 / (opt.constraint_line_sigma * opt.constraint_line_sigma);

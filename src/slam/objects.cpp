@@ -113,17 +113,21 @@ void ObjectHandler::prepare(const Frame& frame, const std::optional<SE3>& predic
   measure_propagation(detections, source, from, frame.id, predicted_T_c_w);
   carry_movers(boxes, frame, predicted_T_c_w);
   boxes_ = std::move(boxes);
-
-  std::vector<perception::Detection> dets;
-  for (const ObjectBox& b : boxes_) dets.push_back(b.detection);
-  const auto tracks = tracks_.associate(dets, [this](const perception::Detection& d) {
-    return options_.self_moving(d.class_name) || d.class_name == kMovingRegionClass;
-  });
-  for (std::size_t b = 0; b < boxes_.size(); ++b) boxes_[b].track = tracks[b];
+  associate_tracks();
   const std::vector<cv::Rect2f> plane_extent = frame_plane_extents(features, camera_);
   grow_flat_movers(boxes_, features, plane_extent, camera_, options_);
   feature_boxes_ = assign_features(features, plane_extent, boxes_, options_);
   update_exclusions();
+}
+
+void ObjectHandler::associate_tracks() {
+  std::vector<perception::Detection> dets;
+  for (const ObjectBox& b : boxes_) dets.push_back(b.detection);
+  // New tracks of self-moving classes and moving regions start dynamic (the class prior).
+  const auto tracks = tracks_.associate(dets, [this](const perception::Detection& d) {
+    return options_.self_moving(d.class_name) || d.class_name == kMovingRegionClass;
+  });
+  for (std::size_t b = 0; b < boxes_.size(); ++b) boxes_[b].track = tracks[b];
 }
 
 void ObjectHandler::measure_propagation(const std::vector<perception::Detection>& detections,
@@ -205,6 +209,10 @@ void ObjectHandler::classify(const Frame& frame, const SE3& T_c_w) {
           ? nullptr
           : &history_[std::min(history_.size(), static_cast<std::size_t>(options_.frame_gap)) - 1];
   std::vector<MotionMatch> matches;
+  const std::optional<ConstraintFrame> planes =
+      reference ? std::optional<ConstraintFrame>(
+                      constraint_frame(frame.features->planes, T_c_w, *reference->T_c_w))
+                : std::nullopt;
   if (reference) {
     BoxVerdicts verdicts = judge_boxes(*frame.features, T_c_w, *reference, history_.front(),
                                        feature_boxes_, n_boxes, camera_, options_);
@@ -212,16 +220,15 @@ void ObjectHandler::classify(const Frame& frame, const SE3& T_c_w) {
     decisions_ = std::move(verdicts.decisions);
     threshold_ = verdicts.threshold;
     update_tracks(matches);
-    check_constraints(frame, T_c_w, *reference, matches);
+    check_constraints(*planes, matches);
   }
   update_exclusions();
   // Moving regions: confirmed while Algorithm 1 keeps finding them moving, dropped when found
   // still (their track turned static) or unconfirmed for too long.
   movers_ = surviving_movers(boxes_, box_states(), decisions_, frame.id, kMoverLife);
   if (!reference) return;
-  ConstraintMeasurements residuals = constraint_measurements(
-      matches, box_states(), feature_boxes_, constraints_, frame.features->planes,
-      reference->T_c_w->inverse(), T_c_w.inverse(), options_);
+  ConstraintMeasurements residuals = constraint_measurements(matches, box_states(), feature_boxes_,
+                                                             constraints_, *planes, options_);
   constrained_points_ = std::move(residuals.points);
   constrained_lines_ = std::move(residuals.lines);
 }
@@ -242,13 +249,8 @@ void ObjectHandler::update_tracks(const std::vector<MotionMatch>& matches) {
   }
 }
 
-void ObjectHandler::check_constraints(const Frame& frame, const SE3& T_c_w,
-                                      const ObjectFrame& reference,
+void ObjectHandler::check_constraints(const ConstraintFrame& planes,
                                       const std::vector<MotionMatch>& matches) {
-  const auto& planes = frame.features->planes;
-  const std::vector<Eigen::Vector4d> planes_w = planes_in_world(planes, T_c_w);
-  const SE3 T_w_c = T_c_w.inverse();
-  const SE3 T_w_ref = reference.T_c_w->inverse();
   for (std::size_t b = 0; b < boxes_.size(); ++b) {
     const int t = boxes_[b].track;
     if (tracks_.tracks()[static_cast<std::size_t>(t)].state == ObjectState::kStatic) continue;
@@ -256,8 +258,7 @@ void ObjectHandler::check_constraints(const Frame& frame, const SE3& T_c_w,
       tracks_.set_constrained(t, false, -1);
       continue;
     }
-    constraints_[b] = check_box_constraint(b, boxes_[b], matches, planes, planes_w, T_w_ref, T_w_c,
-                                           camera_, options_);
+    constraints_[b] = check_box_constraint(b, boxes_[b], matches, planes, camera_, options_);
     tracks_.set_constrained(t, constraints_[b].constrained, constraints_[b].plane);
   }
 }

@@ -343,6 +343,37 @@ TEST(ObjectStages, MovingRegionsLiveWhileConfirmed) {
   EXPECT_TRUE(kept.empty());
 }
 
+/// A horizontal plane y = `height` (camera frame, y down) over x in [-w, w], z in [z0, z1].
+features::PlaneFeature level_plane(double height, double w, double z0, double z1) {
+  features::PlaneFeature p;
+  p.normal = {0.0, -1.0, 0.0};
+  p.d = height;
+  for (const auto& [x, z] : {std::pair{-w, z0}, {w, z0}, {w, z1}, {-w, z1}})
+    p.hull.emplace_back(x, height, z);
+  return p;
+}
+
+TEST(ObjectStages, AnObjectSlidingOnTheFloorIsTiedToItNotToItsSeat) {
+  const PinholeCamera camera = test::make_camera();
+  // The chair's seat (inside its box, and the closest plane to its points) and the floor.
+  const std::vector<features::PlaneFeature> planes = {level_plane(0.5, 0.1, 2.0, 2.2),
+                                                      level_plane(1.0, 3.0, 1.0, 5.0)};
+  std::vector<MotionMatch> matches;
+  for (int k = 0; k < 6; ++k) {
+    MotionMatch m;
+    m.box = 0;
+    m.ref_c[0] = Eigen::Vector3d(-0.2 + 0.08 * k, 0.55 + 0.05 * k, 2.0);
+    m.cur_c[0] = *m.ref_c[0] + Eigen::Vector3d(0.1, 0.0, 0.0);  // slides sideways
+    matches.push_back(m);
+  }
+  const ConstraintFrame frame = constraint_frame(planes, SE3(), SE3());
+  const ConstraintDecision c = check_box_constraint(0, box_at(250, 340, 150, 140, "chair"), matches,
+                                                    frame, camera, DynamicsOptions{});
+  EXPECT_TRUE(c.constrained);
+  EXPECT_EQ(c.plane, 1);  // an index into the frame's planes
+  EXPECT_EQ(c.points, 6);
+}
+
 TEST(ObjectStages, ConstrainedMatchesBecomeResidualInputs) {
   features::PlaneFeature floor;
   floor.normal = {0.0, -1.0, 0.0};
@@ -367,9 +398,10 @@ TEST(ObjectStages, ConstrainedMatchesBecomeResidualInputs) {
   constraints[0].plane = 0;
   const DynamicsOptions options;
   const SE3 T_w_ref(Eigen::Quaterniond::Identity(), Eigen::Vector3d(1.0, 0.0, 0.0));
-  const auto out =
-      constraint_measurements(matches, {ObjectState::kConstrained, ObjectState::kDynamic}, fb,
-                              constraints, {floor}, T_w_ref, SE3(), options);
+  const std::vector<features::PlaneFeature> planes = {floor};
+  const ConstraintFrame frame = constraint_frame(planes, SE3(), T_w_ref.inverse());
+  const std::vector<ObjectState> state = {ObjectState::kConstrained, ObjectState::kDynamic};
+  const auto out = constraint_measurements(matches, state, fb, constraints, frame, options);
   ASSERT_EQ(out.points.size(), 1u);  // the point also in the dynamic box is no residual
   EXPECT_TRUE(out.points[0].p_last_w.isApprox(Eigen::Vector3d(1.0, 0.5, 2.0)));
   EXPECT_TRUE(out.points[0].n_w.isApprox(floor.normal));

@@ -179,18 +179,22 @@ TrackEvidence track_evidence(const ObjectDecision& decision, const std::string& 
 
 // --- Algorithm 2 ---
 
-/// Frame planes in the world frame ([n, d], n . p + d = 0) of a frame at T_c_w.
-std::vector<Eigen::Vector4d> planes_in_world(const std::vector<features::PlaneFeature>& planes,
-                                             const SE3& T_c_w);
+/// The frames Algorithm 2 compares: the current frame's planes (camera frame, and world frame
+/// as [n, d] with n . p + d = 0) and the poses of the reference and current frames.
+struct ConstraintFrame {
+  const std::vector<features::PlaneFeature>& planes;
+  std::vector<Eigen::Vector4d> planes_w;
+  SE3 T_w_ref;
+  SE3 T_w_c;
+};
+ConstraintFrame constraint_frame(const std::vector<features::PlaneFeature>& planes,
+                                 const SE3& T_c_w, const SE3& T_ref_w);
 
 /// Algorithm 2 for box `box` (index `b`) against the frame planes that reach beyond it (the
-/// floor, not its seat); the decision's plane indexes `planes`.
+/// floor, not its seat); the decision's plane indexes `frame.planes`.
 ConstraintDecision check_box_constraint(std::size_t b, const ObjectBox& box,
                                         const std::vector<MotionMatch>& matches,
-                                        const std::vector<features::PlaneFeature>& planes,
-                                        const std::vector<Eigen::Vector4d>& planes_w,
-                                        const SE3& T_w_ref, const SE3& T_w_c,
-                                        const PinholeCamera& camera,
+                                        const ConstraintFrame& frame, const PinholeCamera& camera,
                                         const DynamicsOptions& options);
 
 /// The inputs of residuals (9) and (10).
@@ -200,13 +204,12 @@ struct ConstraintMeasurements {
 };
 
 /// Residual inputs from the matched features (with depth at both ends) of constrained boxes
-/// that are in no dynamic box, tied to their box's plane (`planes`: the frame's, camera frame).
+/// that are in no dynamic box, tied to their box's plane.
 ConstraintMeasurements constraint_measurements(const std::vector<MotionMatch>& matches,
                                                const std::vector<ObjectState>& state,
                                                const FeatureBoxes& boxes,
                                                const std::vector<ConstraintDecision>& constraints,
-                                               const std::vector<features::PlaneFeature>& planes,
-                                               const SE3& T_w_ref, const SE3& T_w_c,
+                                               const ConstraintFrame& frame,
                                                const DynamicsOptions& options);
 
 // --- movers without a box ---

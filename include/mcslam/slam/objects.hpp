@@ -25,7 +25,10 @@
 //     rigid surface moves whole).
 //  4. remember(): the tracked frame joins the history Algorithm 1 compares with.
 //
-// Each step is a short sequence of the stages declared in object_stages.hpp.
+// Each step is a short sequence of the stages declared in object_stages.hpp: prepare() runs
+// carry_boxes, grow_flat_movers and assign_features; classify() judge_boxes,
+// withhold_shared_verdicts, track_evidence, check_box_constraint and constraint_measurements;
+// find_movers() motion_seeds, moving_planes, region_nodes, connected_regions and mover_region.
 
 #include <cstdint>
 #include <deque>
@@ -143,14 +146,15 @@ class ObjectHandler {
   void measure_propagation(const std::vector<perception::Detection>& detections,
                            std::uint64_t source, const ObjectFrame* from, std::uint64_t frame_id,
                            const std::optional<SE3>& predicted_T_c_w);
+  /// Each box's track (same class, overlapping box in the last frame), or a new one.
+  void associate_tracks();
   /// The moving regions of earlier frames carried to the frame, appended to `boxes`.
   void carry_movers(std::vector<ObjectBox>& boxes, const Frame& frame,
                     const std::optional<SE3>& T_c_w) const;
   /// Algorithm 1 with the class prior: each box's verdict into its track.
   void update_tracks(const std::vector<MotionMatch>& matches);
   /// Algorithm 2 for the boxes of moving tracks.
-  void check_constraints(const Frame& frame, const SE3& T_c_w, const ObjectFrame& reference,
-                         const std::vector<MotionMatch>& matches);
+  void check_constraints(const ConstraintFrame& planes, const std::vector<MotionMatch>& matches);
   /// Whether a region found in this frame was found at the same place in one of the last two
   /// frames (`previous`, carried here by their features' motion).
   bool seen_before(const cv::Rect2f& region, const std::vector<MovingRegion>& previous,
