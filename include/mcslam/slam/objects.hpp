@@ -24,6 +24,11 @@
 //     carried box of a region found on a moving plane grows over the planes it holds most of (a
 //     rigid surface moves whole).
 //  4. remember(): the tracked frame joins the history Algorithm 1 compares with.
+//
+// Each step is a short sequence of the stages declared in object_stages.hpp: prepare() runs
+// carry_boxes, grow_flat_movers and assign_features; classify() judge_boxes,
+// withhold_shared_verdicts, track_evidence, check_box_constraint and constraint_measurements;
+// find_movers() motion_seeds, moving_planes, region_nodes, connected_regions and mover_region.
 
 #include <cstdint>
 #include <deque>
@@ -39,11 +44,9 @@
 #include "mcslam/perception/detection.hpp"
 #include "mcslam/slam/dynamics.hpp"
 #include "mcslam/slam/frame.hpp"
+#include "mcslam/slam/object_stages.hpp"
 
 namespace mcslam::slam {
-
-/// Class name of the boxes that find_movers() makes around moving regions without a detection.
-inline constexpr const char* kMovingRegionClass = "moving region";
 
 /// One detected object of a frame, with the decisions of Algorithms 1 and 2.
 struct ObjectReport {
@@ -54,7 +57,8 @@ struct ObjectReport {
   ConstraintDecision constraint;
   /// How the box came to this frame: detected on it, carried forward from the detector's frame
   /// by its features' motion (`propagated_matches` of them), or only grown (too few matches).
-  enum class Source : std::uint8_t { kFresh, kPropagated, kGrown, kMover } source = Source::kFresh;
+  using Source = BoxSource;
+  Source source = Source::kFresh;
   int propagated_matches = 0;
   /// Depth band (metres) of the object's own features; features beyond it are background.
   float depth_near = -1.0f;
@@ -87,14 +91,6 @@ struct ObjectOutputs {
   double stale_iou = -1.0;
   int mover_regions = 0;  ///< regions found by find_movers() in this frame
   int mover_points = 0;   ///< features they took out
-};
-
-/// A feature of the frame whose position the map predicts: where its landmark (or last-frame
-/// point) should be in the camera frame with the estimated pose.
-struct MotionEvidence {
-  int point = -1;                      ///< index into the frame's points
-  Eigen::Vector3d expected_c;          ///< predicted camera-frame position
-  map::PointId landmark = map::kNoId;  ///< the map point, when it is one
 };
 
 /// What find_movers() found.
@@ -144,66 +140,42 @@ class ObjectHandler {
   ObjectOutputs outputs(const Frame& frame) const;
 
  private:
-  struct PastFrame {
-    std::uint64_t id = 0;
-    std::shared_ptr<const features::FrameFeatures> features;
-    std::optional<SE3> T_c_w;  ///< when tracked
-  };
-  /// A box of the frame with what was learnt about it.
-  struct Box {
-    perception::Detection detection;
-    int track = -1;
-    ObjectReport::Source source = ObjectReport::Source::kFresh;
-    int propagated_matches = 0;
-    float depth = -1.0f;  ///< median depth of the object's own features (-1: none)
-    float depth_near = -1.0f, depth_far = -1.0f;
-    int background_points = 0;
-    int unconfirmed = 0;  ///< moving regions: frames without confirmation
-    int age = 0;          ///< moving regions: frames since the region was last seen
-    bool flat = false;    ///< moving regions: found on a moving frame plane
-  };
-
-  /// A moving region found without a box, carried to later frames.
-  struct Mover {
-    perception::Detection detection;  ///< in frame `frame`
-    std::uint64_t frame = 0;
-    int unconfirmed = 0;  ///< frames since evidence last confirmed it
-    bool flat = false;    ///< found on a frame plane seen to move (grow_movers)
-  };
-
-  /// Brings boxes detected on frame `from` (`age` frames back) to the frame with features `to`
-  /// and pose `T_to_w` (when known). Boxes carried by their features' motion get source
-  /// kPropagated, the others kGrown (unless `source` is kMover).
-  std::vector<Box> propagate(const std::vector<perception::Detection>& boxes, const PastFrame* from,
-                             const features::FrameFeatures& to, const std::optional<SE3>& T_to_w,
-                             int age, ObjectReport::Source source) const;
-  /// Grows each moving region's box towards the frame planes it holds most of.
-  void grow_movers(const features::FrameFeatures& features,
-                   const std::vector<cv::Rect2f>& plane_extent);
-  /// Assigns features to boxes (structural planes, background and overlaps resolved).
-  void assign_features(const Frame& frame);
+  void start_frame(const Frame& frame);
+  /// When a new detection arrived: how well the previous one, carried to its frame, and the same
+  /// boxes only grown overlap it (propagation_iou_, stale_iou_).
+  void measure_propagation(const std::vector<perception::Detection>& detections,
+                           std::uint64_t source, const ObjectFrame* from, std::uint64_t frame_id,
+                           const std::optional<SE3>& predicted_T_c_w);
+  /// Each box's track (same class, overlapping box in the last frame), or a new one.
+  void associate_tracks();
+  /// The moving regions of earlier frames carried to the frame, appended to `boxes`.
+  void carry_movers(std::vector<ObjectBox>& boxes, const Frame& frame,
+                    const std::optional<SE3>& T_c_w) const;
+  /// Algorithm 1 with the class prior: each box's verdict into its track.
+  void update_tracks(const std::vector<MotionMatch>& matches);
+  /// Algorithm 2 for the boxes of moving tracks.
+  void check_constraints(const ConstraintFrame& planes, const std::vector<MotionMatch>& matches);
+  /// Whether a region found in this frame was found at the same place in one of the last two
+  /// frames (`previous`, carried here by their features' motion).
+  bool seen_before(const cv::Rect2f& region, const std::vector<MovingRegion>& previous,
+                   const Frame& frame, const SE3& T_c_w) const;
+  /// Leaves a confirmed region's features out (its points, and the segments within its extent
+  /// and depth); returns whether it lies on a moving plane. Seeds' map points join `moved`.
+  bool take_region(const features::FrameFeatures& features, const std::vector<std::size_t>& members,
+                   const cv::Rect2f& region, const MotionSeeds& seeds,
+                   const std::vector<std::uint8_t>& moving_plane, std::vector<map::PointId>& moved);
   void update_exclusions();
-  /// Matches the features of the boxes in `boxes` (bit b: box b) and a sample of the
-  /// background to an earlier frame by appearance.
-  std::vector<MotionMatch> match_to_reference(const Frame& frame, const PastFrame& ref,
-                                              const SE3& T_cur_ref,
-                                              std::uint64_t boxes = ~std::uint64_t{0}) const;
-  std::vector<std::uint8_t> moving_planes(const features::FrameFeatures& features,
-                                          const std::vector<std::uint8_t>& seed,
-                                          const std::vector<std::uint8_t>& measured) const;
-  double adaptive_threshold(const std::vector<MotionMatch>& matches, const SE3& T_cur_ref) const;
-  const PastFrame* recent(std::uint64_t id) const;
+  const ObjectFrame* recent(std::uint64_t id) const;
   std::vector<ObjectState> box_states() const;
 
   PinholeCamera camera_;
   DynamicsOptions options_;
   ObjectTracks tracks_;
   // The current frame.
-  std::vector<Box> boxes_;
+  std::vector<ObjectBox> boxes_;
   bool fresh_ = true;
   int age_ = 0;
-  std::vector<std::uint64_t> point_boxes_;  // bit b: box b
-  std::vector<std::uint64_t> line_boxes_;
+  FeatureBoxes feature_boxes_;
   std::vector<std::uint8_t> point_excluded_;
   std::vector<std::uint8_t> line_excluded_;
   std::vector<std::uint8_t> point_mover_;  // left out by find_movers
@@ -221,11 +193,11 @@ class ObjectHandler {
   std::vector<perception::Detection> last_detection_;
   // Moving regions found without a box, carried to the next frame as boxes; and regions seen
   // in one frame only, which a region of the next frame at the same place confirms.
-  std::vector<Mover> movers_;
-  std::vector<Mover> candidates_;
+  std::vector<MovingRegion> movers_;
+  std::vector<MovingRegion> candidates_;
   // Recent frames (any state) for propagation, newest first; tracked frames for Algorithm 1.
-  std::deque<PastFrame> recent_;
-  std::deque<PastFrame> history_;
+  std::deque<ObjectFrame> recent_;
+  std::deque<ObjectFrame> history_;
 };
 
 }  // namespace mcslam::slam
