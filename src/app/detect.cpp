@@ -114,17 +114,11 @@ class ProgressBar {
 
 double round_to(double value, double step) { return std::round(value / step) * step; }
 
-}  // namespace
-
-nlohmann::json detect_images(const DetectRequest& request) {
-  if (const auto problem = request.options.check()) throw InputError(*problem);
-  if (request.max_frames < 0)
-    throw InputError("max_frames must be >= 0, got " + std::to_string(request.max_frames));
-  if (request.output_dir.empty()) throw InputError("no output folder given");
-
-  // The images first, so a wrong path fails before the model loads or anything is written.
+/// The images to run on: the input image, or the sequence's rgb.txt (up to --max-frames);
+/// warnings for listed files that are missing.
+std::vector<ImageEntry> list_images(const DetectRequest& request,
+                                    std::vector<std::string>& warnings) {
   std::vector<ImageEntry> images;
-  std::vector<std::string> warnings;
   std::error_code ec;
   if (fs::is_directory(request.input, ec)) {
     images = read_rgb_list(request.input, warnings);
@@ -135,6 +129,77 @@ nlohmann::json detect_images(const DetectRequest& request) {
   }
   if (request.max_frames > 0 && images.size() > static_cast<std::size_t>(request.max_frames))
     images.resize(static_cast<std::size_t>(request.max_frames));
+  return images;
+}
+
+/// An annotated image (InputError when it cannot be written).
+void write_annotated(const std::string& path, const cv::Mat& image) {
+  bool written = false;
+  try {
+    written = cv::imwrite(path, image);
+  } catch (const cv::Exception&) {
+    written = false;
+  }
+  if (!written) throw InputError(file_error(path, "cannot write the annotated image"));
+}
+
+/// What the detector found over the images, and the boxes for detections.json.
+struct DetectTally {
+  perception::DetectionsFile file;
+  std::optional<cv::Size> common_size;
+  bool sizes_agree = true;
+  std::map<std::string, int> per_class;
+  std::vector<double> detector_ms;
+  std::size_t total = 0, frames_with_objects = 0;
+};
+
+/// The detector on every image: the boxes, drawn into annotated/ and counted.
+DetectTally detect_all(const perception::Detector& detector, const std::vector<ImageEntry>& images,
+                       const fs::path& annotated_dir, bool progress) {
+  DetectTally tally;
+  tally.detector_ms.reserve(images.size());
+  std::set<std::string> used_names;
+  ProgressBar bar(progress, images.size());
+  for (std::size_t i = 0; i < images.size(); ++i) {
+    const ImageEntry& entry = images[i];
+    cv::Mat image = cv::imread(entry.path, cv::IMREAD_COLOR);
+    if (image.empty())
+      throw InputError(
+          file_error(entry.path, "cannot read image (missing, truncated or not an image)"));
+    if (!tally.common_size) tally.common_size = image.size();
+    tally.sizes_agree = tally.sizes_agree && *tally.common_size == image.size();
+
+    const Stopwatch watch;
+    std::vector<perception::Detection> detections = detector.detect(image);
+    tally.detector_ms.push_back(watch.elapsed_ms());
+
+    tally.total += detections.size();
+    if (!detections.empty()) ++tally.frames_with_objects;
+    for (const auto& d : detections) ++tally.per_class[d.class_name];
+
+    perception::draw_detections(image, detections);
+    write_annotated((annotated_dir / annotated_name(entry.path, used_names)).string(), image);
+    tally.file.frames.push_back({entry.timestamp, std::move(detections)});
+    bar.update(i + 1);
+  }
+  if (tally.common_size && tally.sizes_agree) {
+    tally.file.image_width = tally.common_size->width;
+    tally.file.image_height = tally.common_size->height;
+  }
+  return tally;
+}
+
+}  // namespace
+
+nlohmann::json detect_images(const DetectRequest& request) {
+  if (const auto problem = request.options.check()) throw InputError(*problem);
+  if (request.max_frames < 0)
+    throw InputError("max_frames must be >= 0, got " + std::to_string(request.max_frames));
+  if (request.output_dir.empty()) throw InputError("no output folder given");
+
+  // The images first, so a wrong path fails before the model loads or anything is written.
+  std::vector<std::string> warnings;
+  const std::vector<ImageEntry> images = list_images(request, warnings);
   for (const auto& warning : warnings) std::cerr << "mcslam: warning: " << warning << "\n";
 
   const Stopwatch load_watch;
@@ -146,55 +211,12 @@ nlohmann::json detect_images(const DetectRequest& request) {
   io::ensure_directory(request.output_dir);
   io::ensure_directory(annotated_dir.string());
 
-  perception::DetectionsFile file;
-  file.source = fs::path(request.model).filename().string();
-  std::optional<cv::Size> common_size;
-  bool sizes_agree = true;
-  std::map<std::string, int> per_class;
-  std::vector<double> detector_ms;
-  detector_ms.reserve(images.size());
-  std::size_t total = 0, frames_with_objects = 0;
-  std::set<std::string> used_names;
-  ProgressBar bar(request.progress, images.size());
-
-  for (std::size_t i = 0; i < images.size(); ++i) {
-    const ImageEntry& entry = images[i];
-    cv::Mat image = cv::imread(entry.path, cv::IMREAD_COLOR);
-    if (image.empty())
-      throw InputError(
-          file_error(entry.path, "cannot read image (missing, truncated or not an image)"));
-    if (!common_size) common_size = image.size();
-    sizes_agree = sizes_agree && *common_size == image.size();
-
-    const Stopwatch watch;
-    std::vector<perception::Detection> detections = detector.detect(image);
-    detector_ms.push_back(watch.elapsed_ms());
-
-    total += detections.size();
-    if (!detections.empty()) ++frames_with_objects;
-    for (const auto& d : detections) ++per_class[d.class_name];
-
-    perception::draw_detections(image, detections);
-    const std::string annotated = (annotated_dir / annotated_name(entry.path, used_names)).string();
-    bool written = false;
-    try {
-      written = cv::imwrite(annotated, image);
-    } catch (const cv::Exception&) {
-      written = false;
-    }
-    if (!written) throw InputError(file_error(annotated, "cannot write the annotated image"));
-
-    file.frames.push_back({entry.timestamp, std::move(detections)});
-    bar.update(i + 1);
-  }
-  if (common_size && sizes_agree) {
-    file.image_width = common_size->width;
-    file.image_height = common_size->height;
-  }
+  DetectTally tally = detect_all(detector, images, annotated_dir, request.progress);
+  tally.file.source = fs::path(request.model).filename().string();
   const std::string detections_path = (out / "detections.json").string();
-  perception::write_detections(detections_path, file);
+  perception::write_detections(detections_path, tally.file);
 
-  const SampleStats stats = compute_stats(detector_ms);
+  const SampleStats stats = compute_stats(tally.detector_ms);
   nlohmann::json summary;
   summary["input"] = request.input;
   summary["model"] = detector.path();
@@ -204,9 +226,9 @@ nlohmann::json detect_images(const DetectRequest& request) {
   summary["confidence"] = request.options.confidence;
   summary["nms_iou"] = request.options.nms_iou;
   summary["frames"] = images.size();
-  summary["frames_with_detections"] = frames_with_objects;
-  summary["detections"] = total;
-  summary["detections_per_class"] = per_class;
+  summary["frames_with_detections"] = tally.frames_with_objects;
+  summary["detections"] = tally.total;
+  summary["detections_per_class"] = tally.per_class;
   summary["detector_ms"] = {{"median", round_to(stats.median, 0.01)},
                             {"p95", round_to(stats.p95, 0.01)},
                             {"mean", round_to(stats.mean, 0.01)},

@@ -119,13 +119,11 @@ std::string to_string(const Fault& f) {
   return s.str();
 }
 
-nlohmann::json write_faulty_sequence(const FaultRequest& request) {
-  const io::RgbdSequence source = io::RgbdSequence::open(request.sequence_dir);
-  const slam::RunConfig config = slam::resolve_run_config(request.sequence_dir, std::nullopt);
-  const int n = static_cast<int>(source.frames().size());
-  const fs::path boxes_path = fs::path(source.directory()) / "detections.json";
-  std::optional<perception::DetectionsFile> boxes;
-  if (fs::exists(boxes_path)) boxes = perception::read_detections(boxes_path.string());
+namespace {
+
+/// The source's frames as the copy starts from them: absolute paths and their boxes.
+std::vector<OutFrame> source_frames(const io::RgbdSequence& source,
+                                    const std::optional<perception::DetectionsFile>& boxes) {
   std::vector<OutFrame> frames;
   for (const io::FrameEntry& e : source.frames()) {
     OutFrame& f = frames.emplace_back();
@@ -136,84 +134,90 @@ nlohmann::json write_faulty_sequence(const FaultRequest& request) {
     if (const perception::FrameDetections* d = boxes ? boxes->find(e.rgb_timestamp) : nullptr)
       f.boxes = d->detections;
   }
-  std::optional<Trajectory> groundtruth;
-  if (const auto gt = source.groundtruth_path()) groundtruth = io::read_tum_trajectory(*gt);
+  return frames;
+}
 
-  const fs::path out(request.output_dir);
-  io::ensure_directory((out / "rgb").string());
-  io::ensure_directory((out / "depth").string());
-  const cv::Size size(config.camera.width, config.camera.height);
-  nlohmann::json report = {
-      {"source", source.directory()}, {"frames_in", n}, {"faults", nlohmann::json::array()}};
-  for (const Fault& f : request.faults) {
-    if (f.kind != Fault::Kind::kDropEvery && f.start >= n)
-      throw InputError("--fault '" + to_string(f) + "': the sequence has only " +
-                       std::to_string(n) + " frames");
-    const int first = f.kind == Fault::Kind::kDropEvery ? 0 : f.start;
-    const int end = f.kind == Fault::Kind::kDropEvery || f.kind == Fault::Kind::kTimeJump
-                        ? n
-                        : std::min(n, f.start + f.length + (f.kind == Fault::Kind::kFreeze));
-    int affected = 0;
-    for (int i = first; i < end; ++i) {
-      OutFrame& fr = frames[i];
-      char name[32];
-      std::snprintf(name, sizeof(name), "%06d.png", i);
-      switch (f.kind) {
-        case Fault::Kind::kDropEvery:
-          if ((i + 1) % f.length != 0) continue;
-          fr.keep = false;
-          break;
-        case Fault::Kind::kDropBurst:
-          fr.keep = false;
-          break;
-        case Fault::Kind::kBlack:
-        case Fault::Kind::kSaturate:
-          write_image(
-              out / "rgb" / name,
-              cv::Mat(size, CV_8UC3, cv::Scalar::all(f.kind == Fault::Kind::kBlack ? 0 : 255)));
-          fr.rgb = absolute((out / "rgb" / name).string());
-          fr.boxes.clear();  // a detector finds nothing in a blank image
-          break;
-        case Fault::Kind::kZeroDepth:
-          write_image(out / "depth" / name, cv::Mat(size, CV_16UC1, cv::Scalar(0)));
-          fr.depth = absolute((out / "depth" / name).string());
-          break;
-        case Fault::Kind::kKidnap:
-          write_image(out / "rgb" / name, cv::Mat(size, CV_8UC3, cv::Scalar::all(0)));
-          write_image(out / "depth" / name, cv::Mat(size, CV_16UC1, cv::Scalar(0)));
-          fr.rgb = absolute((out / "rgb" / name).string());
-          fr.depth = absolute((out / "depth" / name).string());
-          fr.boxes.clear();
-          break;
-        case Fault::Kind::kFreeze:
-          if (i == f.start) continue;  // the frame that stays on screen
-          fr.rgb = frames[f.start].rgb;
-          fr.depth = frames[f.start].depth;
-          fr.boxes = frames[f.start].boxes;
-          break;
-        case Fault::Kind::kTimeJump:
-          fr.t_rgb += f.seconds;
-          fr.t_depth += f.seconds;
-          break;
-      }
-      ++affected;
-    }
-    if (f.kind == Fault::Kind::kTimeJump && groundtruth) {
-      const double from = source.frames()[f.start].rgb_timestamp - 1e-6;
-      for (StampedPose& p : *groundtruth)
-        if (p.timestamp >= from) p.timestamp += f.seconds;
-    }
-    nlohmann::json j = {{"fault", to_string(f)}, {"frames_affected", affected}};
-    if (f.kind != Fault::Kind::kDropEvery) {
-      const int last = std::min(n, f.kind == Fault::Kind::kTimeJump ? f.start + 1 : end) - 1;
-      j["first_frame"] = f.start;
-      j["last_frame"] = last;
-      j["t_begin"] = frames[f.start].t_rgb;
-      j["t_end"] = frames[last].t_rgb;
-    }
-    report["faults"].push_back(j);
+/// Fault `f` applied to frame i (replacement images go to `out`); false when the frame is left
+/// as it is.
+bool fault_frame(const Fault& f, int i, std::vector<OutFrame>& frames, const fs::path& out,
+                 const cv::Size& size) {
+  OutFrame& fr = frames[i];
+  char name[32];
+  std::snprintf(name, sizeof(name), "%06d.png", i);
+  switch (f.kind) {
+    case Fault::Kind::kDropEvery:
+      if ((i + 1) % f.length != 0) return false;
+      fr.keep = false;
+      break;
+    case Fault::Kind::kDropBurst:
+      fr.keep = false;
+      break;
+    case Fault::Kind::kBlack:
+    case Fault::Kind::kSaturate:
+      write_image(out / "rgb" / name,
+                  cv::Mat(size, CV_8UC3, cv::Scalar::all(f.kind == Fault::Kind::kBlack ? 0 : 255)));
+      fr.rgb = absolute((out / "rgb" / name).string());
+      fr.boxes.clear();  // a detector finds nothing in a blank image
+      break;
+    case Fault::Kind::kZeroDepth:
+      write_image(out / "depth" / name, cv::Mat(size, CV_16UC1, cv::Scalar(0)));
+      fr.depth = absolute((out / "depth" / name).string());
+      break;
+    case Fault::Kind::kKidnap:
+      write_image(out / "rgb" / name, cv::Mat(size, CV_8UC3, cv::Scalar::all(0)));
+      write_image(out / "depth" / name, cv::Mat(size, CV_16UC1, cv::Scalar(0)));
+      fr.rgb = absolute((out / "rgb" / name).string());
+      fr.depth = absolute((out / "depth" / name).string());
+      fr.boxes.clear();
+      break;
+    case Fault::Kind::kFreeze:
+      if (i == f.start) return false;  // the frame that stays on screen
+      fr.rgb = frames[f.start].rgb;
+      fr.depth = frames[f.start].depth;
+      fr.boxes = frames[f.start].boxes;
+      break;
+    case Fault::Kind::kTimeJump:
+      fr.t_rgb += f.seconds;
+      fr.t_depth += f.seconds;
+      break;
   }
+  return true;
+}
 
+/// Fault `f` applied to the frames (and a time jump to the ground truth); its line of
+/// faults.json.
+nlohmann::json apply_fault(const Fault& f, const io::RgbdSequence& source,
+                           std::vector<OutFrame>& frames, std::optional<Trajectory>& groundtruth,
+                           const fs::path& out, const cv::Size& size) {
+  const int n = static_cast<int>(frames.size());
+  if (f.kind != Fault::Kind::kDropEvery && f.start >= n)
+    throw InputError("--fault '" + to_string(f) + "': the sequence has only " + std::to_string(n) +
+                     " frames");
+  const int first = f.kind == Fault::Kind::kDropEvery ? 0 : f.start;
+  const int end = f.kind == Fault::Kind::kDropEvery || f.kind == Fault::Kind::kTimeJump
+                      ? n
+                      : std::min(n, f.start + f.length + (f.kind == Fault::Kind::kFreeze));
+  int affected = 0;
+  for (int i = first; i < end; ++i)
+    if (fault_frame(f, i, frames, out, size)) ++affected;
+  if (f.kind == Fault::Kind::kTimeJump && groundtruth) {
+    const double from = source.frames()[f.start].rgb_timestamp - 1e-6;
+    for (StampedPose& p : *groundtruth)
+      if (p.timestamp >= from) p.timestamp += f.seconds;
+  }
+  nlohmann::json j = {{"fault", to_string(f)}, {"frames_affected", affected}};
+  if (f.kind != Fault::Kind::kDropEvery) {
+    const int last = std::min(n, f.kind == Fault::Kind::kTimeJump ? f.start + 1 : end) - 1;
+    j["first_frame"] = f.start;
+    j["last_frame"] = last;
+    j["t_begin"] = frames[f.start].t_rgb;
+    j["t_end"] = frames[last].t_rgb;
+  }
+  return j;
+}
+
+/// rgb.txt and depth.txt of the frames kept; how many there are (InputError for none).
+int write_frame_lists(const fs::path& out, const std::vector<OutFrame>& frames) {
   std::ostringstream rgb, depth;
   rgb << "# colour images (mcslam faults)\n" << std::fixed << std::setprecision(6);
   depth << "# depth images (mcslam faults)\n" << std::fixed << std::setprecision(6);
@@ -227,19 +231,49 @@ nlohmann::json write_faulty_sequence(const FaultRequest& request) {
   if (kept == 0) throw InputError("--fault: every frame would be dropped");
   io::write_file_atomic((out / "rgb.txt").string(), rgb.str());
   io::write_file_atomic((out / "depth.txt").string(), depth.str());
+  return kept;
+}
+
+/// The copy's detections.json: the source's boxes of the frames kept.
+void write_kept_boxes(const fs::path& out, const perception::DetectionsFile& boxes,
+                      const std::vector<OutFrame>& frames) {
+  perception::DetectionsFile copy = boxes;
+  copy.source += " (mcslam faults)";
+  copy.frames.clear();
+  for (const OutFrame& f : frames)
+    if (f.keep) copy.frames.push_back({f.t_rgb, f.boxes});
+  perception::write_detections((out / "detections.json").string(), copy);
+}
+
+}  // namespace
+
+nlohmann::json write_faulty_sequence(const FaultRequest& request) {
+  const io::RgbdSequence source = io::RgbdSequence::open(request.sequence_dir);
+  const slam::RunConfig config = slam::resolve_run_config(request.sequence_dir, std::nullopt);
+  const int n = static_cast<int>(source.frames().size());
+  const fs::path boxes_path = fs::path(source.directory()) / "detections.json";
+  std::optional<perception::DetectionsFile> boxes;
+  if (fs::exists(boxes_path)) boxes = perception::read_detections(boxes_path.string());
+  std::vector<OutFrame> frames = source_frames(source, boxes);
+  std::optional<Trajectory> groundtruth;
+  if (const auto gt = source.groundtruth_path()) groundtruth = io::read_tum_trajectory(*gt);
+
+  const fs::path out(request.output_dir);
+  io::ensure_directory((out / "rgb").string());
+  io::ensure_directory((out / "depth").string());
+  const cv::Size size(config.camera.width, config.camera.height);
+  nlohmann::json report = {
+      {"source", source.directory()}, {"frames_in", n}, {"faults", nlohmann::json::array()}};
+  for (const Fault& f : request.faults)
+    report["faults"].push_back(apply_fault(f, source, frames, groundtruth, out, size));
+
+  const int kept = write_frame_lists(out, frames);
   io::write_file_atomic(
       (out / "camera.yaml").string(),
       io::camera_settings_yaml(config.camera,
                                "the camera of the source sequence (written by mcslam faults)"));
   if (groundtruth) io::write_tum_trajectory((out / "groundtruth.txt").string(), *groundtruth);
-  if (boxes) {
-    perception::DetectionsFile copy = *boxes;
-    copy.source += " (mcslam faults)";
-    copy.frames.clear();
-    for (const OutFrame& f : frames)
-      if (f.keep) copy.frames.push_back({f.t_rgb, f.boxes});
-    perception::write_detections((out / "detections.json").string(), copy);
-  }
+  if (boxes) write_kept_boxes(out, *boxes, frames);
   report["frames_out"] = kept;
   io::write_file_atomic((out / "faults.json").string(), report.dump(2) + "\n");
   return report;

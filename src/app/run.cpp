@@ -35,6 +35,7 @@
 #include "mcslam/slam/system.hpp"
 #include "occupancy_outputs.hpp"
 #include "run_observers.hpp"
+#include "run_summary.hpp"
 
 namespace mcslam::app {
 namespace {
@@ -195,76 +196,6 @@ map::Session load_compatible_session(const std::string& path, const slam::RunCon
   return session;
 }
 
-/// Loops for summary.json: counts, every verified candidate with its figures, timings.
-/// The rolling-shutter readout time used and, when estimated, how (summary.json "readout").
-nlohmann::json readout_json(const slam::ReadoutReport& r) {
-  nlohmann::json j = {{"mode", r.automatic ? "auto" : "fixed"}, {"readout_time_s", r.readout_time}};
-  if (!r.automatic) return j;
-  j["estimate_s"] = r.estimate;
-  j["std_s"] = r.std;
-  j["frames_used"] = r.frames_used;
-  j["frames_rejected"] = r.frames_rejected;
-  j["epochs"] = r.epochs;
-  j["confident"] = r.confident;
-  j["confident_at_timestamp"] = r.confident_at;
-  j["frames_used_when_confident"] = r.frames_used_when_confident;
-  return j;
-}
-
-/// The calibration pass before the run (summary.json "readout" / "calibration").
-nlohmann::json calibration_json(const slam::ReadoutCalibration& c) {
-  return {{"frames", c.frames},
-          {"sequence_s", c.sequence_s},
-          {"wall_ms", c.wall_ms},
-          {"confident", c.report.confident},
-          {"estimate_s", c.report.estimate},
-          {"std_s", c.report.std},
-          {"frames_used", c.report.frames_used},
-          {"start_readout_time_s", c.readout_time}};
-}
-
-nlohmann::json loops_json(const slam::LoopStatistics& stats, const slam::PlaceOptions& place) {
-  nlohmann::json events = nlohmann::json::array();
-  int accepted = 0;
-  for (const auto& e : stats.events) {
-    accepted += e.accepted ? 1 : 0;
-    nlohmann::json j = {{"keyframe", e.keyframe},
-                        {"matched_keyframe", e.matched},
-                        {"timestamp", e.timestamp},
-                        {"matched_timestamp", e.matched_timestamp},
-                        {"score", e.score},
-                        {"matches", e.matches},
-                        {"ransac_inliers", e.ransac_inliers},
-                        {"inliers", e.inliers},
-                        {"accepted", e.accepted},
-                        {"verify_ms", e.verify_ms}};
-    if (e.accepted) {
-      j["correction_m"] = e.correction_m;
-      j["correction_deg"] = e.correction_deg;
-      j["fused_points"] = e.fused_points;
-      j["correct_ms"] = e.correct_ms;
-    } else {
-      j["reason"] = e.reason;
-    }
-    events.push_back(std::move(j));
-  }
-  const SampleStats detection = compute_stats(stats.detection_ms);
-  const SampleStats ba = compute_stats(stats.full_ba_ms);
-  return {{"enabled", place.loop.enabled && !place.vocabulary.empty()},
-          {"vocabulary", place.vocabulary},
-          {"candidates_without_matches", stats.unmatched_candidates},
-          {"detected", stats.events.size()},
-          {"accepted", accepted},
-          {"rejected", static_cast<int>(stats.events.size()) - accepted},
-          {"detection_median_ms", detection.median},
-          {"detection_p95_ms", detection.p95},
-          {"keyframes_checked", detection.count},
-          {"full_ba_runs", stats.full_ba_runs},
-          {"full_ba_aborted", stats.full_ba_aborted},
-          {"full_ba_median_ms", ba.median},
-          {"events", events}};
-}
-
 /// The frames a run plays: the sequence `passes` times in a row, pass k shifted by k * period.
 struct StreamPlan {
   std::vector<io::FrameEntry> frames;
@@ -274,6 +205,20 @@ struct StreamPlan {
   double first = 0.0, last = 0.0;  // RGB timestamps of the sequence's first and last frames
   double gap = 0.0;                // median time between frames
   double period = 0.0;             // last - first + gap: pass k starts at first + k * period
+};
+
+/// Everything run_sequence prepares for the frame loop.
+struct PreparedRun {
+  std::string source_path;
+  std::shared_ptr<const io::FrameSource> source;  // null for a live stream
+  std::vector<std::string> warnings;
+  slam::RunConfig config;
+  StreamPlan plan;
+  std::size_t total = 0;  // frames to play (--max-frames)
+  std::optional<Trajectory> groundtruth;
+  map::Session initial;  // the loaded session's map and dense map, or none
+  std::unique_ptr<slam::DetectionSource> detection_source;
+  std::optional<slam::ReadoutCalibration> calibration;
 };
 
 /// One frame's images, of the camera's size (InputError naming the file otherwise).
@@ -509,103 +454,134 @@ void score_synthetic_map(nlohmann::json& occupancy, const std::string& source_pa
   }
 }
 
-nlohmann::json run_frames(const RunRequest& request, const std::string& source_path,
-                          const io::FrameSource* source, const std::vector<std::string>& warnings,
-                          const StreamPlan& plan, std::size_t total, const slam::RunConfig& config,
-                          std::unique_ptr<slam::DetectionSource> detection_source,
-                          map::Session initial, const std::optional<Trajectory>& groundtruth,
-                          const std::optional<slam::ReadoutCalibration>& calibration,
-                          RunStatus& status, Viewer* viewer, RunControl* control) {
-  namespace fs = std::filesystem;
-  const fs::path out(request.output_dir);
-  slam::System system(config.camera, config.options, std::move(initial.map),
-                      std::move(initial.dense));
-  std::string detection_description;
-  if (detection_source) {
-    detection_description = detection_source->describe();
-    system.set_detection_source(std::move(detection_source), request.wait_for_detections);
+/// The System's source of boxes, with its description for the summary ("" for none).
+std::string attach_detection_source(slam::System& system, const RunRequest& request,
+                                    std::unique_ptr<slam::DetectionSource> detection_source) {
+  if (!detection_source) return std::string();
+  std::string description = detection_source->describe();
+  system.set_detection_source(std::move(detection_source), request.wait_for_detections);
+  return description;
+}
+
+/// The viewer reads the System from its own thread: it lets go before the System goes, also
+/// when the run ends with an error.
+struct DetachViewer {
+  Viewer* viewer;
+  ~DetachViewer() {
+    if (viewer) viewer->detach();
   }
-  if (request.inject_failure) inject_failure(system, *request.inject_failure);
+};
 
-  // The viewer reads the System from its own thread: it lets go before the System goes, also
-  // when the run ends with an error.
-  struct DetachViewer {
-    Viewer* viewer;
-    ~DetachViewer() {
-      if (viewer) viewer->detach();
-    }
-  } detach_viewer{viewer};
-  // So do the callbacks' own threads (the ROS node's map publisher): RunRequest::on_detach.
-  struct DetachCallbacks {
-    const std::function<void()>& detach;
-    ~DetachCallbacks() {
-      if (detach) detach();
-    }
-  } detach_callbacks{request.on_detach};
+/// So do the callbacks' own threads (the ROS node's map publisher): RunRequest::on_detach.
+struct DetachCallbacks {
+  const std::function<void()>& detach;
+  ~DetachCallbacks() {
+    if (detach) detach();
+  }
+};
 
-  // The observers of each frame's result, in the order they see it.
+/// The observers of each frame's result; `list` has them in the order they see it.
+struct RunObservers {
+  RunObservers(const RunRequest& request, const std::filesystem::path& out,
+               const slam::System& system, const StreamPlan& plan, std::size_t total,
+               RunStatus& status, Viewer* viewer)
+      : objects(system.detection_source()
+                    ? std::optional<std::string>((out / "objects.json").string())
+                    : std::nullopt),
+        overlays(request.save_overlays
+                     ? std::optional<OverlayWriter>(std::in_place, out / "overlays")
+                     : std::nullopt),
+        callback(request.on_frame ? std::optional<CallbackObserver>(std::in_place, request.on_frame)
+                                  : std::nullopt),
+        passes(plan.passes > 1 ? std::optional<PassRecorder>(std::in_place, recorder,
+                                                             plan.frames_per_pass, total)
+                               : std::nullopt),
+        checkpoints(out, status, request.live != nullptr, total),
+        progress(request.progress ? std::optional<ProgressObserver>(std::in_place, total, recorder)
+                                  : std::nullopt) {
+    list = {&recorder, &objects};
+    if (overlays) list.push_back(&*overlays);
+    if (callback) list.push_back(&*callback);
+    if (passes) list.push_back(&*passes);
+    list.push_back(&checkpoints);
+    if (progress) list.push_back(&*progress);
+    if (viewer) list.push_back(viewer);
+  }
+
   FrameRecorder recorder;
-  ObjectsRecorder objects(system.detection_source()
-                              ? std::optional<std::string>((out / "objects.json").string())
-                              : std::nullopt);
+  ObjectsRecorder objects;
   std::optional<OverlayWriter> overlays;
-  if (request.save_overlays) overlays.emplace(out / "overlays");
   std::optional<CallbackObserver> callback;
-  if (request.on_frame) callback.emplace(request.on_frame);
   std::optional<PassRecorder> passes;
-  if (plan.passes > 1) passes.emplace(recorder, plan.frames_per_pass, total);
-  Checkpointer checkpoints(out, status, request.live != nullptr, total);
+  Checkpointer checkpoints;
   std::optional<ProgressObserver> progress;
-  if (request.progress) progress.emplace(total, recorder);
-  std::vector<FrameObserver*> observers = {&recorder, &objects};
-  if (overlays) observers.push_back(&*overlays);
-  if (callback) observers.push_back(&*callback);
-  if (passes) observers.push_back(&*passes);
-  observers.push_back(&checkpoints);
-  if (progress) observers.push_back(&*progress);
-  if (viewer) observers.push_back(viewer);
+  std::vector<FrameObserver*> list;
+};
 
-  Stopwatch wall;
-  FrameInput input(request, source, plan, total, system, config.camera);
-  const Streamed streamed = stream_frames(request, input, system, observers, control, viewer);
-  const bool interrupted = streamed.interrupted;
-  const std::size_t offered = streamed.offered;
-  std::string failure = streamed.failure;
-  if (failure.empty()) {
+/// How a run ended: the frame loop's outcome, what failed (the loop or the System's finish),
+/// and the wall time of both.
+struct RunEnd {
+  Streamed streamed;
+  std::string failure;
+  double wall_s = 0.0;
+};
+
+/// Plays the stream, finishes the System and saves the session (not of a failed run's map).
+RunEnd play_stream(const RunRequest& request, FrameInput& input, slam::System& system,
+                   RunObservers& observers, RunControl* control, Viewer* viewer,
+                   const Stopwatch& wall) {
+  RunEnd end;
+  end.streamed = stream_frames(request, input, system, observers.list, control, viewer);
+  end.failure = end.streamed.failure;
+  if (end.failure.empty()) {
     try {
       system.finish();
     } catch (const std::exception& e) {
-      failure = e.what();
+      end.failure = e.what();
     }
   }
-  const double wall_s = wall.elapsed_ms() / 1000.0;
+  end.wall_s = wall.elapsed_ms() / 1000.0;
   // A failed thread may have left the map half-changed: no session is made of it.
-  if (request.save_session && failure.empty()) system.save_session(*request.save_session);
-  const std::size_t processed = streamed.done;
+  if (request.save_session && end.failure.empty()) system.save_session(*request.save_session);
+  return end;
+}
 
-  // Outputs.
+/// The trajectory files' first line when the run stopped early ("" when it did not).
+std::string end_note(const RunEnd& end, std::size_t total) {
+  const std::string at = std::to_string(end.streamed.offered) + " of " + std::to_string(total);
+  if (!end.failure.empty()) return "failed after frame " + at + ": " + end.failure;
+  if (end.streamed.interrupted) return "interrupted after frame " + at + " (stopped on request)";
+  return std::string();
+}
+
+/// The final and the unsmoothed trajectory of a run, and how the smoothing went.
+struct RunTrajectories {
+  Trajectory final_poses, unsmoothed;
   optim::TrajectorySmoothingReport smoothing;
-  const Trajectory trajectory = system.trajectory(&smoothing);
-  const Trajectory unsmoothed = system.unsmoothed_trajectory();
-  const std::string note = !failure.empty() ? "failed after frame " + std::to_string(offered) +
-                                                  " of " + std::to_string(total) + ": " + failure
-                           : interrupted
-                               ? "interrupted after frame " + std::to_string(offered) + " of " +
-                                     std::to_string(total) + " (stopped on request)"
-                               : std::string();
-  io::write_tum_trajectory((out / "trajectory.txt").string(), trajectory, note);
-  io::write_tum_trajectory((out / "trajectory_unsmoothed.txt").string(), unsmoothed, note);
+};
+
+/// trajectory.txt, trajectory_unsmoothed.txt, trajectory_online.txt, keyframes.txt, timings.csv.
+RunTrajectories write_trajectories(const std::filesystem::path& out, const slam::System& system,
+                                   const std::string& note, const FrameRecorder& recorder,
+                                   bool realtime) {
+  RunTrajectories t;
+  t.final_poses = system.trajectory(&t.smoothing);
+  t.unsmoothed = system.unsmoothed_trajectory();
+  io::write_tum_trajectory((out / "trajectory.txt").string(), t.final_poses, note);
+  io::write_tum_trajectory((out / "trajectory_unsmoothed.txt").string(), t.unsmoothed, note);
   io::write_tum_trajectory((out / "trajectory_online.txt").string(), system.online_trajectory(),
                            note);
   io::write_file_atomic((out / "keyframes.txt").string(),
                         format_tum_keyframes(system.keyframe_trajectory()));
-  io::write_file_atomic((out / "timings.csv").string(), recorder.timings_csv(request.realtime));
+  io::write_file_atomic((out / "timings.csv").string(), recorder.timings_csv(realtime));
+  return t;
+}
 
-  nlohmann::json summary;
-  summary["state"] = !failure.empty() ? "failed" : interrupted ? "interrupted" : "complete";
-  if (!failure.empty()) summary["failure"] = failure;
-  summary["sequence"] = source_path;
-  summary["camera_source"] = config.camera_source;
+/// The readout time used (summary "readout") and config.yaml with the settings as resolved.
+void write_readout(nlohmann::json& summary, const std::filesystem::path& out,
+                   const slam::RunConfig& config,
+                   const std::optional<slam::ReadoutCalibration>& calibration,
+                   const slam::System& system) {
   if (calibration && calibration->report.confident) {
     // The run used the calibration pass's estimate as a fixed value; the setting was auto.
     summary["readout"] = readout_json(calibration->report);
@@ -619,222 +595,198 @@ nlohmann::json run_frames(const RunRequest& request, const std::string& source_p
                           slam::to_yaml(config, system.readout_report()));
   }
   if (calibration) summary["readout"]["calibration"] = calibration_json(*calibration);
-  summary["sequential"] = config.options.sequential;
-  summary["frames"] = processed;
-  summary["tracked_frames"] = recorder.tracked;
-  summary["tracked_ratio"] =
-      processed == 0 ? 0.0 : static_cast<double>(recorder.tracked) / processed;
-  summary["lost_frames"] = recorder.lost;
-  summary["not_initialized_frames"] =
-      static_cast<int>(processed) - recorder.tracked - recorder.lost;
-  summary["relocalisations"] = recorder.relocalised;
-  {
-    const SampleStats q = compute_stats(recorder.reloc_query_ms);
-    summary["relocalisation"] = {
-        {"attempts", recorder.reloc_attempts},  {"succeeded", recorder.relocalised},
-        {"from_last_pose", recorder.recovered}, {"by_database", recorder.reloc_by_database},
-        {"query_median_ms", q.median},          {"query_p95_ms", q.p95},
-        {"events", recorder.reloc_events}};
+}
+
+/// The map's size (summary) and, with --save-map, map.ply and map.json, read under the map's lock.
+void write_map(nlohmann::json& summary, const std::filesystem::path& out,
+               const slam::System& system, bool save_map) {
+  auto lock = system.map().read_lock();
+  summary["keyframes_in_map"] = system.map().num_keyframes();
+  summary["points_in_map"] = system.map().num_points();
+  summary["lines_in_map"] = system.map().num_lines();
+  summary["planes_in_map"] = system.map().num_planes();
+  if (save_map) {
+    io::write_file_atomic((out / "map.ply").string(), map::map_to_ply(system.map()));
+    io::write_file_atomic((out / "map.json").string(),
+                          map::map_to_json(system.map()).dump(1) + "\n");
   }
+}
+
+/// How the run went and what it made: state, settings, tracking, loops and the map; writes
+/// config.yaml, the map files and the occupancy outputs on the way.
+nlohmann::json summary_of_run(const RunRequest& request, const PreparedRun& run,
+                              const slam::System& system, const RunEnd& end,
+                              const FrameRecorder& recorder) {
+  const std::filesystem::path out(request.output_dir);
+  const slam::RunConfig& config = run.config;
+  nlohmann::json summary;
+  summary["state"] = !end.failure.empty()       ? "failed"
+                     : end.streamed.interrupted ? "interrupted"
+                                                : "complete";
+  if (!end.failure.empty()) summary["failure"] = end.failure;
+  summary["sequence"] = run.source_path;
+  summary["camera_source"] = config.camera_source;
+  write_readout(summary, out, config, run.calibration, system);
+  summary["sequential"] = config.options.sequential;
+  add_tracking_figures(summary, recorder, end.streamed.done);
   summary["loops"] = loops_json(system.loop_statistics(), config.options.place);
-  const slam::SolverStatistics solver = system.solver_statistics();
-  summary["solver_failures"] = {{"pose", solver.pose_failures},
-                                {"bundle_adjustment", solver.bundle_adjustment_failures},
-                                {"full_ba", solver.full_ba_failures},
-                                {"pose_graph", solver.pose_graph_failures}};
+  summary["solver_failures"] = solver_failures_json(system.solver_statistics());
   summary["session"] = {{"loaded", request.load_session.value_or("")},
                         {"localize", config.options.localize},
                         {"saved", request.save_session.value_or("")}};
   summary["keyframes_inserted"] = recorder.keyframes_inserted;
-  {
-    auto lock = system.map().read_lock();
-    summary["keyframes_in_map"] = system.map().num_keyframes();
-    summary["points_in_map"] = system.map().num_points();
-    summary["lines_in_map"] = system.map().num_lines();
-    summary["planes_in_map"] = system.map().num_planes();
-    if (request.save_map) {
-      io::write_file_atomic((out / "map.ply").string(), map::map_to_ply(system.map()));
-      io::write_file_atomic((out / "map.json").string(),
-                            map::map_to_json(system.map()).dump(1) + "\n");
-    }
-  }
-  if (system.occupancy() && failure.empty())
+  write_map(summary, out, system, request.save_map);
+  if (system.occupancy() && end.failure.empty())
     summary["occupancy"] = write_occupancy_outputs(*system.occupancy(), out);
   summary["features"] = {{"points", config.options.use.points},
                          {"lines", config.options.use.lines},
                          {"planes", config.options.use.planes}};
-  nlohmann::json per_frame = nlohmann::json::object();
-  for (const auto& [name, samples] : recorder.counts) {
-    const SampleStats st = compute_stats(samples);
-    per_frame[name] = {{"median", st.median}, {"mean", st.mean}, {"max", st.max}};
-  }
-  summary["per_frame_counts"] = per_frame;
-  {
-    nlohmann::json d;
-    d["source"] = detection_description.empty() ? "none (geometry only)" : detection_description;
-    d["enabled"] = config.options.tracker.dynamics.enabled && !detection_description.empty();
-    d["constraints"] = config.options.tracker.dynamics.constraints;
-    d["frames_with_boxes"] = objects.frames_with_boxes;
-    d["fresh_frames"] = objects.fresh_frames;
-    d["fresh_ratio"] = objects.frames_with_boxes == 0
-                           ? 0.0
-                           : static_cast<double>(objects.fresh_frames) / objects.frames_with_boxes;
-    d["median_age_frames"] = compute_stats(objects.detection_age).median;
-    const SampleStats det = compute_stats(objects.detect_ms);
-    d["detector_ms"] = {{"median", det.median}, {"p95", det.p95}, {"count", det.count}};
-    d["object_frames"] = objects.object_states;  // box-frames per state
-    // Boxes carried forward against the detector's next boxes (see ObjectOutputs).
-    d["propagation"] = {{"enabled", config.options.tracker.dynamics.propagate_boxes},
-                        {"measured", objects.propagation_iou.size()},
-                        {"iou_median", compute_stats(objects.propagation_iou).median},
-                        {"stale_iou_median", compute_stats(objects.stale_iou).median}};
-    d["mover_frames"] = objects.mover_frames;  // frames where motion without a box was found
-    // Every forward pass of a model, whichever frame used its boxes: the detector's actual rate.
-    // (none for boxes from a file)
-    const std::vector<double> passes_ms = system.detection_source()
-                                              ? system.detection_source()->pass_times_ms()
-                                              : std::vector<double>{};
-    if (!passes_ms.empty()) {
-      const SampleStats pass = compute_stats(passes_ms);
-      d["detector_passes"] = passes_ms.size();
-      d["detector_rate_hz"] = wall_s > 0.0 ? passes_ms.size() / wall_s : 0.0;
-      d["detector_pass_ms"] = {{"median", pass.median}, {"p95", pass.p95}};
-    }
-    summary["dynamics"] = d;
-    objects.commit();
-  }
-  if (request.realtime) {
-    const std::vector<std::size_t> dropped = input.dropped();
-    const SampleStats latency = compute_stats(recorder.latency_ms);
-    summary["realtime"] = {
-        {"enabled", true},
-        {"frames_offered", offered},
-        {"frames_processed", processed},
-        {"frames_dropped", dropped.size()},
-        {"processed_ratio", offered == 0 ? 0.0 : static_cast<double>(processed) / offered},
-        // Tracked frames over the frames the camera delivered: dropped frames count as missing.
-        {"coverage", offered == 0 ? 0.0 : static_cast<double>(recorder.tracked) / offered},
-        {"latency_median_ms", latency.median},
-        {"latency_p95_ms", latency.p95},
-        {"latency_max_ms", latency.max}};
-  }
-  summary["wall_time_s"] = wall_s;
-  // Time spent paused from the viewer does not count against the frame rate.
-  const double running_s = wall_s - (control ? control->paused_ms() / 1000.0 : 0.0);
-  summary["frames_per_second"] = running_s > 0 ? processed / running_s : 0.0;
-  if (control) summary["controls"] = control->summary();
-  if (viewer) summary["viewer"] = viewer->summary();
-  const std::string viewer_failure = viewer ? viewer->failure() : std::string();
-  if (!viewer_failure.empty()) summary["viewer_failure"] = viewer_failure;
-  summary["peak_rss_mib"] = peak_rss_mib();
-  nlohmann::json stages = nlohmann::json::object();
-  for (const auto& name : recorder.stage_table.names) {
-    // Stages that did not run on a frame count as 0 there only for the per-frame total.
-    const SampleStats s = compute_stats(recorder.stage_samples[name]);
-    stages[name] = {
-        {"median_ms", s.median}, {"p95_ms", s.p95}, {"mean_ms", s.mean}, {"frames", s.count}};
-  }
-  const SampleStats track_stats = compute_stats(recorder.tracking_ms);
-  stages["tracking_total"] = {{"median_ms", track_stats.median},
-                              {"p95_ms", track_stats.p95},
-                              {"mean_ms", track_stats.mean},
-                              {"frames", track_stats.count}};
-  const SampleStats load_stats = compute_stats(recorder.load_ms);
-  stages["image_load"] = {{"median_ms", load_stats.median},
-                          {"p95_ms", load_stats.p95},
-                          {"mean_ms", load_stats.mean},
-                          {"frames", load_stats.count}};
-  if (!config.options.sequential) {
-    std::map<std::string, std::vector<double>> mapper_samples;
-    for (const auto& t : system.mapper_times())
-      for (const auto& [name, ms] : t.stages) mapper_samples[name].push_back(ms);
-    nlohmann::json mapper = nlohmann::json::object();
-    for (const auto& [name, samples] : mapper_samples) {
-      const SampleStats s = compute_stats(samples);
-      mapper[name] = {{"median_ms", s.median}, {"p95_ms", s.p95}, {"keyframes", s.count}};
-    }
-    summary["mapper_stages"] = mapper;
-  }
-  summary["stages"] = stages;
-  summary["warnings"] = warnings;
-  summary["trajectory_smoothing"] = {
-      {"applied", smoothing.applied},
-      {"position_noise_m", smoothing.position_noise},
-      {"segments", smoothing.segments},
-      {"downweighted", smoothing.downweighted},
-      {"rms_change_m", smoothing.rms_change},
-      {"acceleration_density", config.options.trajectory.acceleration_density}};
-  if (groundtruth && !trajectory.empty()) {
-    try {
-      const eval::EvalReport report = eval::evaluate(*groundtruth, trajectory);
-      if (summary.contains("occupancy") && plan.passes == 1)
-        score_synthetic_map(summary["occupancy"], source_path, trajectory, report.ate.T_gt_est,
-                            *system.occupancy());
-      summary["eval"] = eval::to_json(report);
-      summary["ate_rmse_m"] = report.ate.translation.rmse;
-      if (smoothing.applied)
-        summary["trajectory_smoothing"]["unsmoothed_ate_rmse_m"] =
-            eval::evaluate(*groundtruth, unsmoothed).ate.translation.rmse;
-      const Trajectory online = system.online_trajectory();
-      if (!online.empty())
-        summary["online_ate_rmse_m"] = eval::evaluate(*groundtruth, online).ate.translation.rmse;
-    } catch (const InputError& e) {
-      summary["eval_error"] = e.what();
-    }
-  }
-  if (plan.passes > 1) {
-    summary["repeat"] = plan.passes;
-    nlohmann::json pass_rows = nlohmann::json::array();
-    for (std::size_t k = 0; k < passes->passes().size(); ++k) {
-      const PassFigures& p = passes->passes()[k];
-      const SampleStats t = compute_stats(p.tracking_ms);
-      nlohmann::json row = {{"pass", k + 1},
-                            {"frames", p.frames},
-                            {"tracked_frames", p.tracked},
-                            {"lost_frames", p.lost},
-                            {"relocalisations", p.relocalised},
-                            {"keyframes_inserted", p.keyframes_inserted},
-                            {"tracking_median_ms", t.median},
-                            {"tracking_p95_ms", t.p95},
-                            {"frames_per_second", p.wall_s > 0 ? p.frames / p.wall_s : 0.0},
-                            {"rss_end_mib", p.rss_end_mib},
-                            {"keyframes_in_map", p.keyframes_in_map},
-                            {"points_in_map", p.points_in_map},
-                            {"lines_in_map", p.lines_in_map}};
-      // Each pass's own ATE (its own alignment), from the final trajectory.
-      const double begin = plan.first + k * plan.period - 0.5 * plan.gap;
-      const double end = plan.last + k * plan.period + 0.5 * plan.gap;
-      Trajectory part;
-      for (const StampedPose& pose : trajectory)
-        if (pose.timestamp >= begin && pose.timestamp < end) part.push_back(pose);
-      if (groundtruth && !part.empty()) {
-        try {
-          row["ate_rmse_m"] = eval::evaluate(*groundtruth, part).ate.translation.rmse;
-        } catch (const InputError&) {
-        }
-      }
-      pass_rows.push_back(row);
-    }
-    summary["passes"] = pass_rows;
-  }
-  if (request.on_end) request.on_end(system, summary);
-  io::write_file_atomic((out / "summary.json").string(), summary.dump(2) + "\n");
-  if (!failure.empty()) {
-    status.failed(failure);
-    throw BackgroundThreadError(failure + "; the outputs of the " + std::to_string(processed) +
-                                " frames before it are in " + out.string());
-  }
-  status.finished(interrupted, offered);
-  if (!viewer_failure.empty())
-    throw BackgroundThreadError(viewer_failure + " (SLAM went on without it; the outputs are in " +
-                                out.string() + ")");
+  summary["per_frame_counts"] = per_frame_counts_json(recorder);
   return summary;
 }
 
-}  // namespace
+/// Speed, memory, the viewer and stage times (summary.json); `viewer_failure` is the viewer's
+/// failure ("" for none).
+void add_speed(nlohmann::json& summary, const RunEnd& end, const FrameRecorder& recorder,
+               const slam::System& system, bool sequential, const RunControl* control,
+               const Viewer* viewer, const std::string& viewer_failure) {
+  summary["wall_time_s"] = end.wall_s;
+  // Time spent paused from the viewer does not count against the frame rate.
+  const double running_s = end.wall_s - (control ? control->paused_ms() / 1000.0 : 0.0);
+  summary["frames_per_second"] = running_s > 0 ? end.streamed.done / running_s : 0.0;
+  if (control) summary["controls"] = control->summary();
+  if (viewer) summary["viewer"] = viewer->summary();
+  if (!viewer_failure.empty()) summary["viewer_failure"] = viewer_failure;
+  summary["peak_rss_mib"] = peak_rss_mib();
+  if (!sequential) summary["mapper_stages"] = mapper_stages_json(system);
+  summary["stages"] = stages_json(recorder);
+}
 
-nlohmann::json run_sequence(const RunRequest& request) {
-  namespace fs = std::filesystem;
+/// The trajectories against the ground truth (summary "eval", "ate_rmse_m", ...) and, on a
+/// synthetic sequence, the dense map against the scene.
+void add_eval(nlohmann::json& summary, const PreparedRun& run, const slam::System& system,
+              const RunTrajectories& t) {
+  if (!run.groundtruth || t.final_poses.empty()) return;
+  try {
+    const eval::EvalReport report = eval::evaluate(*run.groundtruth, t.final_poses);
+    if (summary.contains("occupancy") && run.plan.passes == 1)
+      score_synthetic_map(summary["occupancy"], run.source_path, t.final_poses, report.ate.T_gt_est,
+                          *system.occupancy());
+    summary["eval"] = eval::to_json(report);
+    summary["ate_rmse_m"] = report.ate.translation.rmse;
+    if (t.smoothing.applied)
+      summary["trajectory_smoothing"]["unsmoothed_ate_rmse_m"] =
+          eval::evaluate(*run.groundtruth, t.unsmoothed).ate.translation.rmse;
+    const Trajectory online = system.online_trajectory();
+    if (!online.empty())
+      summary["online_ate_rmse_m"] = eval::evaluate(*run.groundtruth, online).ate.translation.rmse;
+  } catch (const InputError& e) {
+    summary["eval_error"] = e.what();
+  }
+}
+
+/// One pass of a --repeat run: its figures and its own ATE (its own alignment) from the final
+/// trajectory.
+nlohmann::json pass_json(const PassFigures& p, std::size_t k, const PreparedRun& run,
+                         const Trajectory& trajectory) {
+  const SampleStats t = compute_stats(p.tracking_ms);
+  nlohmann::json row = {{"pass", k + 1},
+                        {"frames", p.frames},
+                        {"tracked_frames", p.tracked},
+                        {"lost_frames", p.lost},
+                        {"relocalisations", p.relocalised},
+                        {"keyframes_inserted", p.keyframes_inserted},
+                        {"tracking_median_ms", t.median},
+                        {"tracking_p95_ms", t.p95},
+                        {"frames_per_second", p.wall_s > 0 ? p.frames / p.wall_s : 0.0},
+                        {"rss_end_mib", p.rss_end_mib},
+                        {"keyframes_in_map", p.keyframes_in_map},
+                        {"points_in_map", p.points_in_map},
+                        {"lines_in_map", p.lines_in_map}};
+  const StreamPlan& plan = run.plan;
+  const double begin = plan.first + k * plan.period - 0.5 * plan.gap;
+  const double end = plan.last + k * plan.period + 0.5 * plan.gap;
+  Trajectory part;
+  for (const StampedPose& pose : trajectory)
+    if (pose.timestamp >= begin && pose.timestamp < end) part.push_back(pose);
+  if (run.groundtruth && !part.empty()) {
+    try {
+      row["ate_rmse_m"] = eval::evaluate(*run.groundtruth, part).ate.translation.rmse;
+    } catch (const InputError&) {
+    }
+  }
+  return row;
+}
+
+/// Hands the summary to the caller, writes summary.json and status.json, and throws what
+/// stopped the run (a failure, then the viewer's).
+void finish_run(const RunRequest& request, slam::System& system, nlohmann::json& summary,
+                const RunEnd& end, RunStatus& status, const std::string& viewer_failure) {
+  const std::filesystem::path out(request.output_dir);
+  if (request.on_end) request.on_end(system, summary);
+  io::write_file_atomic((out / "summary.json").string(), summary.dump(2) + "\n");
+  if (!end.failure.empty()) {
+    status.failed(end.failure);
+    throw BackgroundThreadError(end.failure + "; the outputs of the " +
+                                std::to_string(end.streamed.done) + " frames before it are in " +
+                                out.string());
+  }
+  status.finished(end.streamed.interrupted, end.streamed.offered);
+  if (!viewer_failure.empty())
+    throw BackgroundThreadError(viewer_failure + " (SLAM went on without it; the outputs are in " +
+                                out.string() + ")");
+}
+
+/// Runs the System over the prepared stream and writes every output; summary.json's content.
+nlohmann::json run_frames(const RunRequest& request, PreparedRun& run, RunStatus& status,
+                          Viewer* viewer, RunControl* control) {
+  slam::System system(run.config.camera, run.config.options, std::move(run.initial.map),
+                      std::move(run.initial.dense));
+  const std::string detection_description =
+      attach_detection_source(system, request, std::move(run.detection_source));
+  if (request.inject_failure) inject_failure(system, *request.inject_failure);
+  const DetachViewer detach_viewer{viewer};
+  const DetachCallbacks detach_callbacks{request.on_detach};
+  RunObservers observers(request, request.output_dir, system, run.plan, run.total, status, viewer);
+
+  const Stopwatch wall;
+  FrameInput input(request, run.source.get(), run.plan, run.total, system, run.config.camera);
+  const RunEnd end = play_stream(request, input, system, observers, control, viewer, wall);
+  const RunTrajectories trajectories = write_trajectories(
+      request.output_dir, system, end_note(end, run.total), observers.recorder, request.realtime);
+
+  nlohmann::json summary = summary_of_run(request, run, system, end, observers.recorder);
+  summary["dynamics"] =
+      dynamics_json(observers.objects, system, run.config, detection_description, end.wall_s);
+  observers.objects.commit();
+  if (request.realtime)
+    summary["realtime"] = realtime_json(observers.recorder, end.streamed.offered, end.streamed.done,
+                                        input.dropped().size());
+  const std::string viewer_failure = viewer ? viewer->failure() : std::string();
+  add_speed(summary, end, observers.recorder, system, run.config.options.sequential, control,
+            viewer, viewer_failure);
+  summary["warnings"] = run.warnings;
+  summary["trajectory_smoothing"] = {
+      {"applied", trajectories.smoothing.applied},
+      {"position_noise_m", trajectories.smoothing.position_noise},
+      {"segments", trajectories.smoothing.segments},
+      {"downweighted", trajectories.smoothing.downweighted},
+      {"rms_change_m", trajectories.smoothing.rms_change},
+      {"acceleration_density", run.config.options.trajectory.acceleration_density}};
+  add_eval(summary, run, system, trajectories);
+  if (run.plan.passes > 1) {
+    summary["repeat"] = run.plan.passes;
+    nlohmann::json rows = nlohmann::json::array();
+    for (std::size_t k = 0; k < observers.passes->passes().size(); ++k)
+      rows.push_back(pass_json(observers.passes->passes()[k], k, run, trajectories.final_poses));
+    summary["passes"] = rows;
+  }
+  finish_run(request, system, summary, end, status, viewer_failure);
+  return summary;
+}
+
+/// The checks of a request that need no file.
+void check_request(const RunRequest& request) {
   if (request.repeat < 1) throw InputError("--repeat: must be at least 1");
   if (request.realtime && request.repeat > 1)
     throw InputError("--realtime: not with --repeat (a soak run plays frames as fast as it can)");
@@ -843,18 +795,12 @@ nlohmann::json run_sequence(const RunRequest& request) {
     throw InputError(
         "a live stream runs without --realtime, --repeat, --max-frames and --first-frame");
   if (request.first_frame < 0) throw InputError("--first-frame: must be at least 0");
-  std::shared_ptr<const io::FrameSource> source = request.source;
-  if (!source && !request.live) {
-    io::SequenceOptions seq_options;
-    if (request.associations_path) seq_options.associations_file = *request.associations_path;
-    source = io::FolderSource::open(request.sequence_dir, seq_options);
-  }
-  const std::string source_path = request.live
-                                      ? request.live->describe()
-                                      : fs::path(source->path()).lexically_normal().string();
-  const std::vector<std::string> warnings =
-      source ? source->warnings() : std::vector<std::string>{};
-  for (const auto& warning : warnings) std::cerr << "mcslam: warning: " << warning << "\n";
+}
+
+/// The run's settings: the sequence's (or --config's) with the request's overrides and the
+/// effective values of the settings read as auto.
+slam::RunConfig resolve_config(const RunRequest& request, const std::string& source_path,
+                               const io::FrameSource* source) {
   slam::RunConfig config = slam::resolve_run_config(
       source_path, request.config_path,
       request.live ? request.live->camera_hints() : source->camera_hints(), request.camera_preset);
@@ -876,87 +822,123 @@ nlohmann::json run_sequence(const RunRequest& request) {
   // stream prepares its frames on the loop's thread, so there is nothing to overlap).
   if (config.options.extract_ahead == "auto")
     config.options.extract_ahead = request.realtime ? "true" : "false";
-  io::ensure_directory(request.output_dir);
-  const fs::path out(request.output_dir);
-  io::write_file_atomic((out / "config.yaml").string(), slam::to_yaml(config));
+  return config;
+}
 
+/// The frames to play (from --first-frame, --repeat times) and their ground truth.
+void plan_frames(const RunRequest& request, PreparedRun& run) {
   const std::vector<io::FrameEntry> entries =
-      source ? source->frames() : std::vector<io::FrameEntry>{};
+      run.source ? run.source->frames() : std::vector<io::FrameEntry>{};
   if (request.first_frame > 0 && static_cast<std::size_t>(request.first_frame) >= entries.size())
-    throw InputError(source_path + ": --first-frame " + std::to_string(request.first_frame) +
+    throw InputError(run.source_path + ": --first-frame " + std::to_string(request.first_frame) +
                      " is past the sequence's last frame (it has " +
                      std::to_string(entries.size()) + ")");
-  const StreamPlan plan =
-      plan_stream(entries, request.repeat, static_cast<std::size_t>(request.first_frame));
+  run.plan = plan_stream(entries, request.repeat, static_cast<std::size_t>(request.first_frame));
   // Ground truth is read before the run so that a broken file is reported at once.
-  std::optional<Trajectory> groundtruth = source ? source->groundtruth() : std::nullopt;
-  if (groundtruth) {
-    if (is_bonn(source_path)) groundtruth = eval::bonn_marker_to_camera(*groundtruth);
-    if (request.repeat > 1) groundtruth = repeat_groundtruth(*groundtruth, plan);
+  run.groundtruth = run.source ? run.source->groundtruth() : std::nullopt;
+  if (run.groundtruth) {
+    if (is_bonn(run.source_path)) run.groundtruth = eval::bonn_marker_to_camera(*run.groundtruth);
+    if (request.repeat > 1) run.groundtruth = repeat_groundtruth(*run.groundtruth, run.plan);
   }
+  run.total = run.plan.frames.size();
+  if (request.max_frames > 0)
+    run.total = std::min(run.total, static_cast<std::size_t>(request.max_frames));
+}
 
+/// The ablations of the request, the loaded session's map and the source of boxes.
+void prepare_map_and_boxes(const RunRequest& request, PreparedRun& run) {
+  slam::RunConfig& config = run.config;
   // OpenCV's thread pool is process-wide: the application sets it (SystemOptions).
   if (config.options.opencv_threads > 0) cv::setNumThreads(config.options.opencv_threads);
   if (request.no_dynamics) config.options.tracker.dynamics.enabled = false;
   if (request.no_constraints) config.options.tracker.dynamics.constraints = false;
   if (request.no_occupancy) config.options.occupancy_enabled = false;
-  map::Session initial;  // the loaded session's map and dense map, or none
-  if (request.load_session) initial = load_compatible_session(*request.load_session, config);
-  std::unique_ptr<slam::DetectionSource> detection_source =
-      make_detection_source(request, config.camera, config.options);
-  if (!detection_source)
+  if (request.load_session) run.initial = load_compatible_session(*request.load_session, config);
+  run.detection_source = make_detection_source(request, config.camera, config.options);
+  if (!run.detection_source)
     std::cerr << "mcslam: warning: no --model or --detections given: running on geometry only, "
                  "without dynamic-object handling\n";
+}
+
+/// camera.readout_time: auto on a recorded sequence: its start is tracked once to estimate the
+/// readout, and the run starts from that estimate (slam/readout_calibration.hpp). Not in real
+/// time (a live camera is not replayed) nor in a loaded map (made with a fixed readout).
+void run_readout_calibration(const RunRequest& request, PreparedRun& run) {
+  slam::RunConfig& config = run.config;
+  const bool wanted = run.source && config.camera.readout_auto && !request.realtime &&
+                      !run.initial.map && config.options.readout.calibration_seconds > 0.0;
+  if (!wanted) return;
+  const auto frame = [&](std::size_t k) {
+    const io::FrameEntry& entry = run.plan.frames[k];
+    const io::RgbdImages raw = load_checked(*run.source, run.plan, k, config.camera);
+    return slam::RecordedFrame{raw.rgb, raw.depth, entry.rgb_timestamp, entry.depth_timestamp};
+  };
+  run.calibration = slam::calibrate_readout(config.camera, config.options, run.total, frame);
+  const slam::ReadoutCalibration& calibration = *run.calibration;
+  // A confident estimate is used as a fixed value from the first frame on. Going on
+  // estimating (in epochs, as without the pass) and switching to each new estimate cost
+  // more than it gave on freiburg1_rpy: the later estimates settle at +-26 ms where the
+  // pass's +21.6 / -20.2 ms (forwards / played backwards) gave 0.0105 / 0.0107 m and the
+  // switching run 0.0109 / 0.0854 m (a map made of frames compensated differently).
+  if (calibration.report.confident) {
+    config.camera.readout_time = calibration.readout_time;
+    config.camera.readout_auto = false;
+  }
+  if (request.progress)
+    std::cerr << "mcslam: readout time " << std::fixed << std::setprecision(1)
+              << 1e3 * calibration.readout_time << " ms to start from ("
+              << (calibration.report.confident ? "estimated" : "no confident estimate")
+              << " over the first " << calibration.frames << " frames in " << std::setprecision(1)
+              << calibration.wall_ms / 1e3 << " s)\n";
+}
+
+/// The live viewer with --viewer, listening before the run starts so that a port in use is
+/// reported at once; null without.
+std::unique_ptr<Viewer> start_viewer(const RunRequest& request, const PreparedRun& run,
+                                     std::optional<RunControl>& control) {
+  if (!request.viewer) return nullptr;
+  control.emplace(run.config.options.localize);
+  auto viewer = std::make_unique<Viewer>(*request.viewer, *control, run.source_path, run.total,
+                                         run.groundtruth);
+  const std::string& bind = request.viewer->server.bind;
+  if (bind != "127.0.0.1" && bind != "::1")
+    std::cerr << "mcslam: warning: the viewer listens on " << bind
+              << ", not only on this machine: anyone who can reach it can watch and pause "
+                 "the run (see docs/viewer.md for an SSH tunnel instead)\n";
+  std::cerr << "mcslam: viewer at " << viewer->url() << "\n";
+  return viewer;
+}
+
+}  // namespace
+
+nlohmann::json run_sequence(const RunRequest& request) {
+  namespace fs = std::filesystem;
+  check_request(request);
+  PreparedRun run;
+  run.source = request.source;
+  if (!run.source && !request.live) {
+    io::SequenceOptions seq_options;
+    if (request.associations_path) seq_options.associations_file = *request.associations_path;
+    run.source = io::FolderSource::open(request.sequence_dir, seq_options);
+  }
+  run.source_path = request.live ? request.live->describe()
+                                 : fs::path(run.source->path()).lexically_normal().string();
+  run.warnings = run.source ? run.source->warnings() : std::vector<std::string>{};
+  for (const auto& warning : run.warnings) std::cerr << "mcslam: warning: " << warning << "\n";
+  run.config = resolve_config(request, run.source_path, run.source.get());
+  io::ensure_directory(request.output_dir);
+  const fs::path out(request.output_dir);
+  io::write_file_atomic((out / "config.yaml").string(), slam::to_yaml(run.config));
+  plan_frames(request, run);
+  prepare_map_and_boxes(request, run);
   if (request.save_overlays) io::ensure_directory((out / "overlays").string());
 
-  std::size_t total = plan.frames.size();
-  if (request.max_frames > 0) total = std::min(total, static_cast<std::size_t>(request.max_frames));
-  RunStatus status((out / "status.json").string(), total);
+  RunStatus status((out / "status.json").string(), run.total);
   try {
-    // camera.readout_time: auto on a recorded sequence: its start is tracked once to estimate the
-    // readout, and the run starts from that estimate (slam/readout_calibration.hpp). Not in real
-    // time (a live camera is not replayed) nor in a loaded map (made with a fixed readout).
-    std::optional<slam::ReadoutCalibration> calibration;
-    if (source && config.camera.readout_auto && !request.realtime && !initial.map &&
-        config.options.readout.calibration_seconds > 0.0) {
-      const auto frame = [&](std::size_t k) {
-        const io::FrameEntry& entry = plan.frames[k];
-        const io::RgbdImages raw = load_checked(*source, plan, k, config.camera);
-        return slam::RecordedFrame{raw.rgb, raw.depth, entry.rgb_timestamp, entry.depth_timestamp};
-      };
-      calibration = slam::calibrate_readout(config.camera, config.options, total, frame);
-      // A confident estimate is used as a fixed value from the first frame on. Going on
-      // estimating (in epochs, as without the pass) and switching to each new estimate cost
-      // more than it gave on freiburg1_rpy: the later estimates settle at +-26 ms where the
-      // pass's +21.6 / -20.2 ms (forwards / played backwards) gave 0.0105 / 0.0107 m and the
-      // switching run 0.0109 / 0.0854 m (a map made of frames compensated differently).
-      if (calibration->report.confident) {
-        config.camera.readout_time = calibration->readout_time;
-        config.camera.readout_auto = false;
-      }
-      if (request.progress)
-        std::cerr << "mcslam: readout time " << std::fixed << std::setprecision(1)
-                  << 1e3 * calibration->readout_time << " ms to start from ("
-                  << (calibration->report.confident ? "estimated" : "no confident estimate")
-                  << " over the first " << calibration->frames << " frames in "
-                  << std::setprecision(1) << calibration->wall_ms / 1e3 << " s)\n";
-    }
-    // The viewer listens before the run starts, so that a port in use is reported at once.
+    run_readout_calibration(request, run);
     std::optional<RunControl> control;
-    std::unique_ptr<Viewer> viewer;
-    if (request.viewer) {
-      control.emplace(config.options.localize);
-      viewer = std::make_unique<Viewer>(*request.viewer, *control, source_path, total, groundtruth);
-      const std::string& bind = request.viewer->server.bind;
-      if (bind != "127.0.0.1" && bind != "::1")
-        std::cerr << "mcslam: warning: the viewer listens on " << bind
-                  << ", not only on this machine: anyone who can reach it can watch and pause "
-                     "the run (see docs/viewer.md for an SSH tunnel instead)\n";
-      std::cerr << "mcslam: viewer at " << viewer->url() << "\n";
-    }
-    return run_frames(request, source_path, source.get(), warnings, plan, total, config,
-                      std::move(detection_source), std::move(initial), groundtruth, calibration,
-                      status, viewer.get(), control ? &*control : nullptr);
+    const std::unique_ptr<Viewer> viewer = start_viewer(request, run, control);
+    return run_frames(request, run, status, viewer.get(), control ? &*control : nullptr);
   } catch (const InputError& e) {
     status.failed(e.what());
     throw;

@@ -313,22 +313,24 @@ std::optional<double> our_online_figure(const SequenceResult& sequence, Metric m
   return std::nullopt;
 }
 
-std::string markdown(const BenchMeta& meta, const std::vector<SequenceResult>& sequences) {
-  std::ostringstream md;
+namespace {
+
+/// "sequential, threaded and realtime".
+std::string mode_names(const std::vector<Mode>& modes) {
+  std::string names;
+  for (std::size_t i = 0; i < modes.size(); ++i)
+    names +=
+        (i == 0 ? "" : (i + 1 == modes.size() ? " and " : ", ")) + std::string(to_string(modes[i]));
+  return names;
+}
+
+/// The title, the bench's figures and how to read the tables.
+void markdown_header(std::ostream& md, const BenchMeta& meta, bool sequential, bool threaded) {
   md << "# mcslam bench\n\n";
   md << meta.created_utc << " · `" << meta.command << "` · " << meta.hostname << ", " << meta.cpus
-     << " CPUs · " << meta.runs_per_mode << " run(s) per mode (" <<
-      [&] {
-        std::string names;
-        for (std::size_t i = 0; i < meta.modes.size(); ++i)
-          names += (i == 0 ? "" : (i + 1 == meta.modes.size() ? " and " : ", ")) +
-                   std::string(to_string(meta.modes[i]));
-        return names;
-      }()
+     << " CPUs · " << meta.runs_per_mode << " run(s) per mode (" << mode_names(meta.modes)
      << ") · wall time " << fixed(meta.wall_time_s / 60.0, 1) << " min"
      << (meta.executor.empty() ? "" : " · " + meta.executor) << "\n\n";
-  const bool sequential = std::count(meta.modes.begin(), meta.modes.end(), Mode::kSequential);
-  const bool threaded = std::count(meta.modes.begin(), meta.modes.end(), Mode::kThreaded);
   md << "ATE and RPE (over 1 s) are scored with mcslam's eval code on the whole trajectory (every "
         "frame) of the "
      << (sequential ? "sequential runs, whose mapping is inline and deterministic"
@@ -338,147 +340,177 @@ std::string markdown(const BenchMeta& meta, const std::vector<SequenceResult>& s
      << ". Medians over runs, with (min–max) where the runs differ. Tracked: share of frames "
         "with a tracked pose. ATE is that of trajectory.txt, whose positions each run smooths "
         "with a motion prior; unsmoothed: the same poses before (the run's summary.json).\n";
+}
 
-  std::vector<const RunRecord*> failed;
-  for (const SequenceResult& s : sequences) {
-    md << "\n## " << s.sequence.name << "\n\n";
-    md << to_string(s.sequence.kind) << " · " << s.frames << " frames · boxes: " << s.boxes
-       << " · `" << s.sequence.path << "`";
-    if (s.groundtruth_note) md << " · " << *s.groundtruth_note;
-    md << "\n\n";
-    if (s.error) {
-      md << "**Not run:** " << escape_cell(*s.error) << "\n";
+/// Accuracy and speed per configuration; the failed runs are added to `failed`.
+void accuracy_table(std::ostream& md, const SequenceResult& s,
+                    std::vector<const RunRecord*>& failed) {
+  md << "| configuration | ATE RMSE (m) | unsmoothed (m) | ATE threaded (m) | RPE trans. 1 s (m) "
+        "| RPE rot. 1 s (°) | tracked | fps | tracking (ms) |\n";
+  md << "|---|---|---|---|---|---|---|---|---|\n";
+  for (const ConfigResult& c : s.configs) {
+    md << "| " << c.config.label;
+    if (c.skipped) {
+      md << " | skipped: " << escape_cell(*c.skipped) << " | | | | | | | |\n";
       continue;
     }
-    md << "| configuration | ATE RMSE (m) | unsmoothed (m) | ATE threaded (m) | RPE trans. 1 s (m) "
-          "| RPE rot. 1 s (°) | tracked | fps | tracking (ms) |\n";
-    md << "|---|---|---|---|---|---|---|---|---|\n";
-    for (const ConfigResult& c : s.configs) {
-      md << "| " << c.config.label;
-      if (c.skipped) {
-        md << " | skipped: " << escape_cell(*c.skipped) << " | | | | | | | |\n";
-        continue;
-      }
-      const int acc = accuracy_runs(c), spd = speed_runs(c);
-      md << " | " << cell(c.ate, 4, acc) << " | " << cell(c.ate_unsmoothed, 4, acc) << " | "
-         << cell(c.ate_threaded, 4, runs_in_mode(c, Mode::kThreaded)) << " | "
-         << cell(c.rpe_trans, 4, acc) << " | " << cell(c.rpe_rot_deg, 3, acc) << " | "
-         << percent_cell(c.tracked, acc) << " | " << cell(c.fps, 1, spd) << " | "
-         << cell(c.tracking_ms, 1, spd) << " |\n";
-      for (const RunRecord& r : c.runs)
-        if (!r.ok) failed.push_back(&r);
-    }
-
-    // Place recognition: loops and relocalisations.
-    md << "\nPlace recognition (all runs):\n\n| configuration | keyframes | loops verified | "
-          "loops accepted | loop detection per keyframe (ms) | relocalisations | relocalisation "
-          "query (ms) |\n|---|---|---|---|---|---|---|\n";
-    for (const ConfigResult& c : s.configs) {
-      if (c.skipped) continue;
-      const int n = static_cast<int>(c.runs.size());
-      md << "| " << c.config.label << " | " << cell(c.keyframes, 0, n) << " | "
-         << cell(c.loops_verified, 0, n) << " | " << cell(c.loops_accepted, 0, n) << " | "
-         << cell(c.loop_detection_ms, 2, n) << " | " << cell(c.relocalisations, 0, n) << " | "
-         << cell(c.relocalisation_query_ms, 2, n) << " |\n";
-    }
-
-    // Live camera: frames delivered at their timestamps (--realtime).
-    const bool any_realtime = std::any_of(s.configs.begin(), s.configs.end(), [](const auto& c) {
-      return has_mode(c, Mode::kRealtime);
-    });
-    if (any_realtime) {
-      md << "\nReal time (`--realtime`: frames delivered at their timestamps, the newest wins; ATE "
-            "on the frames processed):\n\n| configuration | ATE RMSE (m) | frames processed | "
-            "latency median (ms) | fps | detector passes/s |\n|---|---|---|---|---|---|\n";
-      for (const ConfigResult& c : s.configs) {
-        if (c.skipped || !has_mode(c, Mode::kRealtime)) continue;
-        const int n = runs_in_mode(c, Mode::kRealtime);
-        md << "| " << c.config.label << " | " << cell(c.ate_realtime, 4, n) << " | "
-           << percent_cell(c.processed, n) << " | " << cell(c.latency_ms, 1, n) << " | "
-           << cell(c.fps_realtime, 1, n) << " | "
-           << (c.config.boxes ? cell(c.detector_rate_hz, 1, n) : std::string("–")) << " |\n";
-      }
-    }
-
-    // Per-stage medians: the stages of the configuration with the most, in its pipeline order,
-    // then any others.
-    using StageList = std::vector<std::pair<std::string, double>>;
-    const auto stage_table = [&](StageList ConfigResult::*field, const std::string& runs) {
-      std::vector<const ConfigResult*> by_stages;
-      for (const ConfigResult& c : s.configs) by_stages.push_back(&c);
-      std::stable_sort(by_stages.begin(), by_stages.end(), [&](const auto* a, const auto* b) {
-        return (a->*field).size() > (b->*field).size();
-      });
-      std::vector<std::string> stages;
-      for (const ConfigResult* c : by_stages)
-        for (const auto& [name, ms] : c->*field)
-          if (std::find(stages.begin(), stages.end(), name) == stages.end()) stages.push_back(name);
-      if (stages.empty()) return;
-      md << "\nPer-stage median (ms), " << runs << " runs:\n\n| configuration |";
-      for (const auto& name : stages) md << ' ' << name << " |";
-      md << "\n|---|";
-      for (std::size_t i = 0; i < stages.size(); ++i) md << "---|";
-      md << "\n";
-      for (const ConfigResult& c : s.configs) {
-        if (c.skipped || (c.*field).empty()) continue;
-        md << "| " << c.config.label << " |";
-        for (const auto& name : stages) {
-          const auto it = std::find_if((c.*field).begin(), (c.*field).end(),
-                                       [&](const auto& p) { return p.first == name; });
-          md << ' ' << (it == (c.*field).end() ? std::string("–") : fixed(it->second, 1)) << " |";
-        }
-        md << "\n";
-      }
-    };
-    stage_table(&ConfigResult::stages_ms,
-                threaded ? "threaded" : (sequential ? "sequential" : "real-time"));
-    if (any_realtime && (sequential || threaded))
-      stage_table(&ConfigResult::stages_ms_realtime, "real-time");
-
-    if (!s.published.empty()) {
-      std::vector<std::string> methods;
-      for (const PublishedRow& row : s.published)
-        for (const auto& [method, v] : row.values)
-          if (std::find(methods.begin(), methods.end(), method) == methods.end())
-            methods.push_back(method);
-      md << "\nPublished figures beside ours (mcslam: this machine, the most complete "
-            "configuration that gave the figure; its ATE is that of the unsmoothed poses, as "
-            "other systems publish theirs, and 'mcslam online' that of the poses given at the "
-            "time):\n\n| figure | mcslam | mcslam online |";
-      for (const auto& m : methods) md << ' ' << m << " |";
-      md << " source |\n|---|---|---|";
-      for (std::size_t i = 0; i < methods.size(); ++i) md << "---|";
-      md << "---|\n";
-      for (const PublishedRow& row : s.published) {
-        const auto ours = our_figure(s, row.compares_with);
-        const auto online = our_online_figure(s, row.compares_with);
-        md << "| " << row.metric << " | "
-           << (ours ? fixed(ours->second, 4) + " (" + ours->first + ")" : std::string("–")) << " | "
-           << (online ? fixed(*online, 4) : std::string("–")) << " |";
-        for (const auto& m : methods) {
-          const auto it = std::find_if(row.values.begin(), row.values.end(),
-                                       [&](const auto& p) { return p.first == m; });
-          md << ' ' << (it == row.values.end() ? std::string("–") : fixed(it->second, 4)) << " |";
-        }
-        md << ' ' << escape_cell(row.source) << " |\n";
-      }
-    }
+    const int acc = accuracy_runs(c), spd = speed_runs(c);
+    md << " | " << cell(c.ate, 4, acc) << " | " << cell(c.ate_unsmoothed, 4, acc) << " | "
+       << cell(c.ate_threaded, 4, runs_in_mode(c, Mode::kThreaded)) << " | "
+       << cell(c.rpe_trans, 4, acc) << " | " << cell(c.rpe_rot_deg, 3, acc) << " | "
+       << percent_cell(c.tracked, acc) << " | " << cell(c.fps, 1, spd) << " | "
+       << cell(c.tracking_ms, 1, spd) << " |\n";
+    for (const RunRecord& r : c.runs)
+      if (!r.ok) failed.push_back(&r);
   }
+}
 
+/// Place recognition: loops and relocalisations.
+void place_table(std::ostream& md, const SequenceResult& s) {
+  md << "\nPlace recognition (all runs):\n\n| configuration | keyframes | loops verified | "
+        "loops accepted | loop detection per keyframe (ms) | relocalisations | relocalisation "
+        "query (ms) |\n|---|---|---|---|---|---|---|\n";
+  for (const ConfigResult& c : s.configs) {
+    if (c.skipped) continue;
+    const int n = static_cast<int>(c.runs.size());
+    md << "| " << c.config.label << " | " << cell(c.keyframes, 0, n) << " | "
+       << cell(c.loops_verified, 0, n) << " | " << cell(c.loops_accepted, 0, n) << " | "
+       << cell(c.loop_detection_ms, 2, n) << " | " << cell(c.relocalisations, 0, n) << " | "
+       << cell(c.relocalisation_query_ms, 2, n) << " |\n";
+  }
+}
+
+/// Live camera: frames delivered at their timestamps (--realtime).
+void realtime_table(std::ostream& md, const SequenceResult& s) {
+  md << "\nReal time (`--realtime`: frames delivered at their timestamps, the newest wins; ATE "
+        "on the frames processed):\n\n| configuration | ATE RMSE (m) | frames processed | "
+        "latency median (ms) | fps | detector passes/s |\n|---|---|---|---|---|---|\n";
+  for (const ConfigResult& c : s.configs) {
+    if (c.skipped || !has_mode(c, Mode::kRealtime)) continue;
+    const int n = runs_in_mode(c, Mode::kRealtime);
+    md << "| " << c.config.label << " | " << cell(c.ate_realtime, 4, n) << " | "
+       << percent_cell(c.processed, n) << " | " << cell(c.latency_ms, 1, n) << " | "
+       << cell(c.fps_realtime, 1, n) << " | "
+       << (c.config.boxes ? cell(c.detector_rate_hz, 1, n) : std::string("–")) << " |\n";
+  }
+}
+
+using StageList = std::vector<std::pair<std::string, double>>;
+
+/// Per-stage medians: the stages of the configuration with the most, in its pipeline order,
+/// then any others.
+void stage_table(std::ostream& md, const SequenceResult& s, StageList ConfigResult::*field,
+                 const std::string& runs) {
+  std::vector<const ConfigResult*> by_stages;
+  for (const ConfigResult& c : s.configs) by_stages.push_back(&c);
+  std::stable_sort(by_stages.begin(), by_stages.end(), [&](const auto* a, const auto* b) {
+    return (a->*field).size() > (b->*field).size();
+  });
+  std::vector<std::string> stages;
+  for (const ConfigResult* c : by_stages)
+    for (const auto& [name, ms] : c->*field)
+      if (std::find(stages.begin(), stages.end(), name) == stages.end()) stages.push_back(name);
+  if (stages.empty()) return;
+  md << "\nPer-stage median (ms), " << runs << " runs:\n\n| configuration |";
+  for (const auto& name : stages) md << ' ' << name << " |";
+  md << "\n|---|";
+  for (std::size_t i = 0; i < stages.size(); ++i) md << "---|";
+  md << "\n";
+  for (const ConfigResult& c : s.configs) {
+    if (c.skipped || (c.*field).empty()) continue;
+    md << "| " << c.config.label << " |";
+    for (const auto& name : stages) {
+      const auto it = std::find_if((c.*field).begin(), (c.*field).end(),
+                                   [&](const auto& p) { return p.first == name; });
+      md << ' ' << (it == (c.*field).end() ? std::string("–") : fixed(it->second, 1)) << " |";
+    }
+    md << "\n";
+  }
+}
+
+/// Published figures of other systems beside ours.
+void published_table(std::ostream& md, const SequenceResult& s) {
+  std::vector<std::string> methods;
+  for (const PublishedRow& row : s.published)
+    for (const auto& [method, v] : row.values)
+      if (std::find(methods.begin(), methods.end(), method) == methods.end())
+        methods.push_back(method);
+  md << "\nPublished figures beside ours (mcslam: this machine, the most complete "
+        "configuration that gave the figure; its ATE is that of the unsmoothed poses, as "
+        "other systems publish theirs, and 'mcslam online' that of the poses given at the "
+        "time):\n\n| figure | mcslam | mcslam online |";
+  for (const auto& m : methods) md << ' ' << m << " |";
+  md << " source |\n|---|---|---|";
+  for (std::size_t i = 0; i < methods.size(); ++i) md << "---|";
+  md << "---|\n";
+  for (const PublishedRow& row : s.published) {
+    const auto ours = our_figure(s, row.compares_with);
+    const auto online = our_online_figure(s, row.compares_with);
+    md << "| " << row.metric << " | "
+       << (ours ? fixed(ours->second, 4) + " (" + ours->first + ")" : std::string("–")) << " | "
+       << (online ? fixed(*online, 4) : std::string("–")) << " |";
+    for (const auto& m : methods) {
+      const auto it = std::find_if(row.values.begin(), row.values.end(),
+                                   [&](const auto& p) { return p.first == m; });
+      md << ' ' << (it == row.values.end() ? std::string("–") : fixed(it->second, 4)) << " |";
+    }
+    md << ' ' << escape_cell(row.source) << " |\n";
+  }
+}
+
+/// One sequence's section: its header line and its tables.
+void sequence_section(std::ostream& md, const SequenceResult& s, bool sequential, bool threaded,
+                      std::vector<const RunRecord*>& failed) {
+  md << "\n## " << s.sequence.name << "\n\n";
+  md << to_string(s.sequence.kind) << " · " << s.frames << " frames · boxes: " << s.boxes << " · `"
+     << s.sequence.path << "`";
+  if (s.groundtruth_note) md << " · " << *s.groundtruth_note;
+  md << "\n\n";
+  if (s.error) {
+    md << "**Not run:** " << escape_cell(*s.error) << "\n";
+    return;
+  }
+  accuracy_table(md, s, failed);
+  place_table(md, s);
+  const bool any_realtime = std::any_of(s.configs.begin(), s.configs.end(),
+                                        [](const auto& c) { return has_mode(c, Mode::kRealtime); });
+  if (any_realtime) realtime_table(md, s);
+  stage_table(md, s, &ConfigResult::stages_ms,
+              threaded ? "threaded" : (sequential ? "sequential" : "real-time"));
+  if (any_realtime && (sequential || threaded))
+    stage_table(md, s, &ConfigResult::stages_ms_realtime, "real-time");
+  if (!s.published.empty()) published_table(md, s);
+}
+
+/// The runs that failed and the sequences that could not be read.
+void failed_runs_table(std::ostream& md, const std::vector<SequenceResult>& sequences,
+                       const std::vector<const RunRecord*>& failed) {
   md << "\n## Failed runs\n\n";
   const bool unreadable = std::any_of(sequences.begin(), sequences.end(),
                                       [](const SequenceResult& s) { return s.error.has_value(); });
   if (failed.empty() && !unreadable) {
     md << "None.\n";
-  } else {
-    md << "| sequence | configuration | mode | run | error |\n|---|---|---|---|---|\n";
-    for (const SequenceResult& s : sequences)
-      if (s.error)
-        md << "| " << s.sequence.name << " | all | – | – | " << escape_cell(*s.error) << " |\n";
-    for (const RunRecord* r : failed)
-      md << "| " << r->sequence << " | " << r->config << " | " << to_string(r->mode) << " | "
-         << r->index << " | " << escape_cell(r->error) << " |\n";
+    return;
   }
+  md << "| sequence | configuration | mode | run | error |\n|---|---|---|---|---|\n";
+  for (const SequenceResult& s : sequences)
+    if (s.error)
+      md << "| " << s.sequence.name << " | all | – | – | " << escape_cell(*s.error) << " |\n";
+  for (const RunRecord* r : failed)
+    md << "| " << r->sequence << " | " << r->config << " | " << to_string(r->mode) << " | "
+       << r->index << " | " << escape_cell(r->error) << " |\n";
+}
+
+}  // namespace
+
+std::string markdown(const BenchMeta& meta, const std::vector<SequenceResult>& sequences) {
+  const bool sequential = std::count(meta.modes.begin(), meta.modes.end(), Mode::kSequential);
+  const bool threaded = std::count(meta.modes.begin(), meta.modes.end(), Mode::kThreaded);
+  std::ostringstream md;
+  markdown_header(md, meta, sequential, threaded);
+  std::vector<const RunRecord*> failed;
+  for (const SequenceResult& s : sequences) sequence_section(md, s, sequential, threaded, failed);
+  failed_runs_table(md, sequences, failed);
   return md.str();
 }
 
