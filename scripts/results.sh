@@ -110,10 +110,11 @@ mkdir -p "$out/mapping"
 bash scripts/bench_mapping.sh --output "$out/mapping" "${map_args[@]}" > "$out/mapping/table.md"
 part_done mapping
 
-# Trajectories scored with `mcslam eval` (trajectory.txt and trajectory_online.txt).
+# Trajectories scored with `mcslam eval`: trajectory.txt, trajectory_online.txt and
+# trajectory_unsmoothed.txt (the final trajectory before its positions are smoothed).
 score() {  # run dir, ground truth, then eval options
   local dir="$1" gt="$2"; shift 2
-  for t in trajectory trajectory_online; do
+  for t in trajectory trajectory_online trajectory_unsmoothed; do
     [ -f "$dir/$t.txt" ] && "$exe" eval --gt "$gt" --est "$dir/$t.txt" --json "$@" \
       > "$dir/$t.eval.json" 2> /dev/null || rm -f "$dir/$t.eval.json"
   done
