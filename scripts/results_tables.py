@@ -196,11 +196,12 @@ def readme_table(rows, crowd, realtime, dyn, ref):
     processed, latency, ratio = realtime
     r = rows
     def ate2(runs):
-        return f"{fig([median(runs.ate())])} / {fig([median(runs.online_ate())])}"
+        return (f"{fig([median(runs.ate())])} ({fig([median(runs.unsmoothed_ate())])}) / "
+                f"{fig([median(runs.online_ate())])}")
     room, und = median(crowd["room"].ate()), median(crowd["undetected"].ate())
     times = f" ({und / room:.1f}x the room without people)" if und and room else ""
     lines = [
-        "| sequence | run | ATE m: `trajectory.txt` / online | speed |",
+        "| sequence | run | ATE m: `trajectory.txt` (unsmoothed) / online | speed |",
         "|---|---|---|---|",
         f"| TUM freiburg1_rpy (694 frames, static) | yolov8n_320, sequential (deterministic) "
         f"| {ate2(r['rpy_seq'])} | |",
