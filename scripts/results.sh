@@ -14,7 +14,7 @@
 #   navigation map    ghost rate and completeness, Bonn REF/FULL (scripts/bench_mapping.sh)
 #
 # Threaded runs differ from run to run: each is run N times (median, min-max); sequential runs
-# are deterministic and run once. About 25 minutes on a 2-core machine with N = 3.
+# are deterministic and run once. About 20 minutes on a 2-core machine with N = 3.
 # Needs ../shared/data (tum/rgbd_dataset_freiburg1_rpy, bonn/rgbd_bonn_crowd_part1) and
 # ../shared/models/yolov8n_320.onnx.
 # Usage: scripts/results.sh [--runs N] [--output DIR] [--no-build] [--max-frames N]
