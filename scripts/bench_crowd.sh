@@ -128,14 +128,10 @@ for i in $(seq 1 "$runs"); do
 done
 
 python3 - "$out" "$runs" "$variants" <<'PY'
-import json, os, statistics, sys
+import os, statistics, sys
+sys.path.insert(0, "scripts")
+from results_tables import load  # a JSON file, or None when it is missing or torn
 out, runs, variants = sys.argv[1], int(sys.argv[2]), sys.argv[3].split(",")
-def load(path):
-    try:
-        with open(path) as f:
-            return json.load(f)
-    except (OSError, ValueError):
-        return None
 def fmt(values, digits=4):
     values = [v for v in values if v is not None]
     if not values:
