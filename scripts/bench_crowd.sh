@@ -34,7 +34,8 @@
 # frames where a moving region without a box was found, and for real-time runs the share of
 # frames processed and the latency p95.
 # Usage: scripts/bench_crowd.sh [--runs N] [--output DIR] [--model M.onnx] [--variants a,b,...]
-#                               [SEQ_DIR]
+#                               [--max-frames N] [SEQ_DIR]
+#   --max-frames N  only the first N frames of each run (0: all; a quick check)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 source scripts/common.sh
@@ -43,12 +44,14 @@ out=results/bench_crowd
 model=../shared/models/yolov8n_320.onnx
 variants=default,wait,no-propagation,no-background,no-movers,no-prior,no-detector
 seq=""
+max_frames=0
 while [ $# -gt 0 ]; do
   case "$1" in
     --runs) runs="$2"; shift 2 ;;
     --output) out="$2"; shift 2 ;;
     --model) model="$2"; shift 2 ;;
     --variants) variants="$2"; shift 2 ;;
+    --max-frames) max_frames="$2"; shift 2 ;;
     -*) echo "bench_crowd: unknown option $1" >&2; exit 2 ;;
     *) seq="$1"; shift ;;
   esac
@@ -107,6 +110,7 @@ for i in $(seq 1 "$runs"); do
     esac
     file=$(settings "$v")
     [ -n "$file" ] && args+=(--config "$file")
+    [ "$max_frames" -gt 0 ] && args+=(--max-frames "$max_frames")
     dir="$out/runs/$v-$i"
     echo "bench_crowd: $v run $i" >&2
     ./build/mcslam run "$seq" --output "$dir" "${args[@]}" -q 2> "$dir.err" ||
@@ -124,14 +128,10 @@ for i in $(seq 1 "$runs"); do
 done
 
 python3 - "$out" "$runs" "$variants" <<'PY'
-import json, os, statistics, sys
+import os, statistics, sys
+sys.path.insert(0, "scripts")
+from results_tables import load  # a JSON file, or None when it is missing or torn
 out, runs, variants = sys.argv[1], int(sys.argv[2]), sys.argv[3].split(",")
-def load(path):
-    try:
-        with open(path) as f:
-            return json.load(f)
-    except (OSError, ValueError):
-        return None
 def fmt(values, digits=4):
     values = [v for v in values if v is not None]
     if not values:

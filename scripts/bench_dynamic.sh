@@ -9,17 +9,20 @@
 # data and model present it also runs freiburg1_rpy without and with the yolov8n_320 detector
 # (threaded: overlapped detection; and --wait-detections) for accuracy and speed, N times each.
 # Synthetic runs are sequential (deterministic), once per configuration.
-# Usage: scripts/bench_dynamic.sh [--runs N] [--output DIR] [--frames N]
+# Usage: scripts/bench_dynamic.sh [--runs N] [--output DIR] [--frames N] [--no-real]
+#   --no-real  the synthetic scenes only
 set -euo pipefail
 cd "$(dirname "$0")/.."
 runs=1
 out=results/bench_dynamic
 frames=300
+real_runs=1
 while [ $# -gt 0 ]; do
   case "$1" in
     --runs) runs="$2"; shift 2 ;;
     --output) out="$2"; shift 2 ;;
     --frames) frames="$2"; shift 2 ;;
+    --no-real) real_runs=0; shift ;;
     *) echo "bench_dynamic: unknown option $1" >&2; exit 2 ;;
   esac
 done
@@ -65,7 +68,7 @@ done
 
 real=../shared/data/tum/rgbd_dataset_freiburg1_rpy
 model=../shared/models/yolov8n_320.onnx
-if [ -f "$real/rgb.txt" ] && [ -f "$model" ]; then
+if [ "$real_runs" = 1 ] && [ -f "$real/rgb.txt" ] && [ -f "$model" ]; then
   mkdir -p "$out/runs/fr1_rpy"
   for i in $(seq 1 "$runs"); do
     echo "bench_dynamic: freiburg1_rpy run $i/$runs" >&2
