@@ -95,9 +95,18 @@ void MappingWorker::set_floor(std::optional<FloorPlane> floor) {
 }
 
 void MappingWorker::set_floor_candidates(std::vector<FloorPlane> candidates) {
-  const std::lock_guard<std::mutex> lock(map_mutex_);
-  floor_candidates_ = std::move(candidates);
-  cached_.reset();
+  auto shared = std::make_shared<std::vector<FloorPlane>>(std::move(candidates));
+  auto apply = [this, shared] {
+    const std::lock_guard<std::mutex> lock(map_mutex_);
+    floor_candidates_ = std::move(*shared);
+    cached_.reset();
+  };
+  // Queued behind the keyframes before it: the caller (the sparse mapper's thread, once per
+  // keyframe) never waits for an integration to let go of the map.
+  if (!worker_ || failure_->failed())
+    apply();
+  else
+    post_guarded(std::move(apply));
 }
 
 std::shared_ptr<const OccupancySnapshot> MappingWorker::snapshot() const {

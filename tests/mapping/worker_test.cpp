@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <chrono>
+#include <future>
 #include <thread>
 
 #include "mapping/box_world.hpp"
@@ -89,6 +91,26 @@ TEST(MappingWorker, CorrectionsApplyInOrderAfterTheKeyframesBeforeThem) {
     const MapQuality q = evaluate_map(map, world.static_surfaces());
     EXPECT_EQ(q.ghosts, 0u);
   });
+}
+
+TEST(MappingWorker, FloorCandidatesNeverWaitForTheMapAndApplyInOrder) {
+  BoxWorld world;
+  const PinholeCamera cam = test::make_camera();
+  MappingWorker worker;
+  worker.enqueue_shared(world.render(0, path(1)[0], cam));
+  worker.wait();
+  const FloorPlane floor{Eigen::Vector3d::UnitZ(), -world.room_min.z()};
+  std::future<void> call;
+  // While another thread holds the map (as an integration does), the candidates are taken at
+  // once; a call that waited for the map would still be waiting when the hold ends (10 s).
+  worker.with_map([&](const OccupancyMap&) {
+    call = std::async(std::launch::async, [&] { worker.set_floor_candidates({floor}); });
+    EXPECT_EQ(call.wait_for(std::chrono::seconds(10)), std::future_status::ready);
+  });
+  call.get();
+  worker.wait();
+  const auto grid = worker.snapshot()->grid;
+  EXPECT_FALSE(grid.floor_estimated) << "the grid stands on the candidate";
 }
 
 TEST(MappingWorker, KeepsTheThreadsExceptionAndStops) {

@@ -66,6 +66,8 @@ class MappingWorker {
   void set_floor(std::optional<FloorPlane> floor);
   /// Planes that may be the floor (the sparse map's horizontal planes below the cameras): the
   /// grid stands on the one that agrees with the voxels (choose_floor), without set_floor().
+  /// Queued like a keyframe (applied after what is queued before it), so that it never waits
+  /// for an integration; any thread may call it.
   void set_floor_candidates(std::vector<FloorPlane> candidates);
 
   /// The map now (any thread). Built on demand when the map changed since the last one (the
