@@ -14,6 +14,7 @@ std::optional<std::string> PoseFilterOptions::check() const {
     return "pose_filter.angular_acceleration_density must be a positive number (rad^2/s^3)";
   if (!positive(measurement_noise_scale))
     return "pose_filter.measurement_noise_scale must be a positive number";
+  if (!positive(downweight_chi2)) return "pose_filter.downweight_chi2 must be a positive number";
   if (!positive(gate_chi2)) return "pose_filter.gate_chi2 must be a positive number";
   if (!positive(max_gap)) return "pose_filter.max_gap must be a positive number of seconds";
   if (!(std::isfinite(adaptive_memory) && adaptive_memory >= 0.0))
@@ -144,13 +145,13 @@ PoseFilterUpdate PoseFilter::update(double timestamp, const SE3& T_c_w,
   z.head<3>() = c_m - c_;
   z.tail<3>() = rotation_log(R_m * R_.transpose());
   const double s2 = options_.measurement_noise_scale * options_.measurement_noise_scale;
-  const Matrix6d H = information_on_centre(information, R_) / s2;
+  Matrix6d H = information_on_centre(information, R_) / s2;
   // S^-1 = (C P C^T + H^-1)^-1 = H (I + C P C^T H)^-1: no inverse of H, which may be singular.
   const Matrix12x6d PC = measured_columns(P_);
   Matrix6d CPC;
   CPC.topRows<3>() = PC.middleRows<3>(kC);
   CPC.bottomRows<3>() = PC.middleRows<3>(kTheta);
-  const Matrix6d S_inv = H * (Matrix6d::Identity() + CPC * H).partialPivLu().inverse();
+  Matrix6d S_inv = H * (Matrix6d::Identity() + CPC * H).partialPivLu().inverse();
   out.nis = z.dot(S_inv * z);
   adapt(dt, out.nis);
   if (!std::isfinite(out.nis) || out.nis > options_.gate_chi2) {
@@ -158,6 +159,11 @@ PoseFilterUpdate PoseFilter::update(double timestamp, const SE3& T_c_w,
     out.restarted = true;
     if (!std::isfinite(out.nis)) out.nis = 0.0;
     return out;
+  }
+  if (out.nis > options_.downweight_chi2) {
+    // Huber: the measurement counts as a frame at the threshold would.
+    H *= std::sqrt(options_.downweight_chi2 / out.nis);
+    S_inv = H * (Matrix6d::Identity() + CPC * H).partialPivLu().inverse();
   }
   const Matrix12x6d K = PC * S_inv;
   const Eigen::Matrix<double, 12, 1> x = K * z;
@@ -176,7 +182,7 @@ PoseFilterUpdate PoseFilter::update(double timestamp, const SE3& T_c_w,
 }
 
 void PoseFilter::move_world(const SE3& W) {
-  if (!started_) return;
+  if (!started_ || !options_.follow_map) return;
   const Matrix3d R_W = W.rotation();
   c_ = W * c_;
   v_ = R_W * v_;
