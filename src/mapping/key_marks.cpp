@@ -38,7 +38,7 @@ KeyMarks::Marked KeyMarks::mark(const octomap::OcTreeKey& key, std::uint8_t role
   }
   const std::size_t entry = entries_.size();
   slot = {packed, static_cast<std::uint32_t>(entry), generation_};
-  entries_.push_back({key, role});
+  entries_.push_back({key, role, 0, 0, 0});
   if (2 * entries_.size() > slots_.size()) grow();  // at most half full: short probes
   return {entry, true};
 }

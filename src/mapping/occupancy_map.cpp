@@ -134,10 +134,11 @@ struct OccupancyMap::Impl {
   float hit_log = 0.0f;
   float miss_log = 0.0f;
   // What one integration's samples did to each voxel (the scratch space is kept).
-  static constexpr std::uint8_t kCrossed = 1;   ///< a ray freed it
-  static constexpr std::uint8_t kHit = 2;       ///< a static sample hit it
-  static constexpr std::uint8_t kMoverHit = 4;  ///< a mover's sample hit it
-  static constexpr std::uint8_t kRayEnd = 8;    ///< a ray was cast to its centre
+  static constexpr std::uint8_t kCrossed = 1;     ///< a ray freed it
+  static constexpr std::uint8_t kHit = 2;         ///< a static sample hit it
+  static constexpr std::uint8_t kMoverHit = 4;    ///< a mover's sample hit it
+  static constexpr std::uint8_t kRayEnd = 8;      ///< a ray was cast to its centre
+  static constexpr std::uint8_t kSpreadHit = 16;  ///< a static sample's spread hit reached it
   detail::KeyMarks marks;
   std::vector<ColourSum> hit_colours;  ///< the colours of the samples in each marked voxel
   octomap::KeySet volatile_keys;       ///< voxels a mover marked last (across keyframes)
@@ -159,15 +160,27 @@ struct OccupancyMap::Impl {
     miss_log = octomap::logodds(options.prob_miss);
   }
 
-  /// Frees the voxels from `from` to the voxel holding `to` (not included). Rays are cast to
-  /// the centre of that last voxel, once per voxel: nearby samples of a keyframe (9 per voxel
-  /// side at 1 m with the default step) would cross the same voxels again.
-  void add_free(const Eigen::Vector3d& from, const Eigen::Vector3d& to) {
+  /// Notes a free ray from the keyframe's origin to the voxel holding `to` (that voxel not
+  /// freed); cast_rays() casts one ray per such voxel, weighted by the samples that end there:
+  /// nearby samples of a keyframe (9 per voxel side at 1 m with the default step) would cross
+  /// the same voxels again.
+  void add_free(const Eigen::Vector3d& to) {
     octomap::OcTreeKey end;
     if (!tree.coordToKeyChecked(to.x(), to.y(), to.z(), end)) return;
-    if (!marks.mark(end, kRayEnd).added) return;
-    if (tree.computeRayKeys(detail::to_point(from), tree.keyToCoord(end), ray))
-      for (const auto& key : ray) marks.mark(key, kCrossed);
+    marks.count_end(marks.mark(end, kRayEnd).entry);
+  }
+
+  /// Frees the voxels crossed by the rays add_free() noted, from `origin` to the centre of each
+  /// end voxel, each crossing counted once per sample whose ray ends there.
+  void cast_rays(const Eigen::Vector3d& origin) {
+    const octomap::point3d from = detail::to_point(origin);
+    const std::size_t noted = marks.entries().size();
+    for (std::size_t e = 0; e < noted; ++e) {
+      const detail::KeyMarks::Entry end = marks.entries()[e];  // a copy: marking may grow them
+      if ((end.roles & kRayEnd) == 0) continue;
+      if (tree.computeRayKeys(from, tree.keyToCoord(end.key), ray))
+        for (const auto& key : ray) marks.add_rays(marks.mark(key, kCrossed).entry, end.ends);
+    }
   }
 
   /// Calls hit(key, false) for the voxel of the point p = o + z * dir_z and hit(key, true) for
@@ -183,9 +196,8 @@ struct OccupancyMap::Impl {
     // the measured point, and behind the point lies what no ray of any keyframe will ever
     // cross to free, so a hit spread there would stay (synthetic walk, Kinect-like noise: 2.0 %
     // ghost voxels spreading both ways, 0.58 % towards the camera only; completeness 99.2 and
-    // 98.3 %). Letting a ray of the same keyframe that crosses a spread voxel free it (a direct
-    // hit still wins) trades ghosts for completeness: four people 1.49 -> 0.23 % ghost voxels but
-    // 96.6 -> 94.3 % complete; the chair 1.30 -> 0.21 %, 97.5 -> 96.7 %.
+    // 98.3 %). A voxel that only spread hits reached yields to the rays of the same keyframe
+    // that cross it (OccupancyOptions::spread_yield_ratio).
     if (sigma < 0.05 * options.resolution) return;
     const Eigen::Vector3d near = o + (z - sigma) * dir_z;
     // Both ends in one voxel (sigma is below half a voxel up to a few metres): no voxel between
@@ -275,18 +287,20 @@ void OccupancyMap::Impl::collect(const KeyframeSamples& s) {
       // The ray at unit depth, in the world frame: p_w = o + z * dir_z.
       const Eigen::Vector3d dir_z = R * s.ray(i, j);
       if (z > max_range) {
-        add_free(o, o + max_range * dir_z);
+        add_free(o + max_range * dir_z);
         continue;
       }
       const double sigma = options.depth_sigma(z);
       const double z_free = z - options.free_margin_sigmas * sigma;
-      if (z_free > 0.0) add_free(o, o + z_free * dir_z);
+      if (z_free > 0.0) add_free(o + z_free * dir_z);
       const std::uint8_t kind = s.kind.at<std::uint8_t>(j, i);
       if (kind == KeyframeSamples::kDynamic) continue;
-      const std::uint8_t role = kind == KeyframeSamples::kMover ? kMoverHit : kHit;
+      const bool mover = kind == KeyframeSamples::kMover;
       const cv::Vec3b* bgr = s.colour.empty() ? nullptr : &s.colour.at<cv::Vec3b>(j, i);
       add_hit(o, dir_z, z, sigma, [&](const octomap::OcTreeKey& k, bool sp) {
+        const std::uint8_t role = mover ? kMoverHit : sp ? kSpreadHit : kHit;
         const std::size_t entry = marks.mark(k, role).entry;
+        if (role == kSpreadHit) marks.count_spread(entry);
         if (bgr == nullptr || sp) return;
         if (entry >= hit_colours.size()) hit_colours.resize(marks.entries().size());
         ColourSum& c = hit_colours[entry];
@@ -297,6 +311,7 @@ void OccupancyMap::Impl::collect(const KeyframeSamples& s) {
       });
     }
   }
+  cast_rays(o);
 }
 
 void OccupancyMap::Impl::integrate(const KeyframeSamples& s) {
@@ -313,10 +328,14 @@ void OccupancyMap::Impl::integrate(const KeyframeSamples& s) {
     sum.n += c.n;
   }
   // One update per voxel. A voxel that one measurement of the keyframe hit is not freed by
-  // another one passing by; a static hit makes it static.
+  // another one passing by; a static hit makes it static. A voxel that only the spread of hits
+  // reached is freed when more of the keyframe's rays crossed it (spread_yield_ratio).
+  const double yield = options.spread_yield_ratio;
   for (const detail::KeyMarks::Entry& e : marks.entries()) {
     const octomap::OcTreeKey& key = e.key;
-    if ((e.roles & kHit) != 0) {
+    const bool spread_holds = (e.roles & kSpreadHit) != 0 && !(static_cast<double>(e.spread) <
+                                                               yield * static_cast<double>(e.rays));
+    if ((e.roles & kHit) != 0 || spread_holds) {
       volatile_keys.erase(key);
       tree.updateNode(key, hit_log, true);
     } else if ((e.roles & kMoverHit) != 0) {

@@ -27,6 +27,8 @@ std::optional<std::string> check_geometry(const OccupancyOptions& o) {
            "quarter of the range";
   if (!(o.free_margin_sigmas >= 0.0) || o.free_margin_sigmas > 10.0)
     return "mapping.free_margin_sigmas must be in [0, 10]";
+  if (!(o.spread_yield_ratio >= 0.0) || o.spread_yield_ratio > 1000.0)
+    return "mapping.spread_yield_ratio must be in [0, 1000]";
   if (o.pixel_step < 0 || o.pixel_step > 64)
     return "mapping.pixel_step must be in [0, 64] (0: auto)";
   if (o.mask_dilation_px < 0 || o.mask_dilation_px > 50)
