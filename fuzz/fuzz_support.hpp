@@ -10,18 +10,30 @@
 #include <fstream>
 #include <string>
 #include <string_view>
+#include <system_error>
+#include <utility>
 
 namespace mcslam::fuzz {
 
-/// This process's scratch folder (made once, under $TMPDIR or /tmp).
+/// A folder removed with everything in it when the process ends normally (a crash keeps it).
+struct ScratchFolder {
+  std::filesystem::path path;
+  explicit ScratchFolder(std::filesystem::path p) : path(std::move(p)) {
+    std::filesystem::create_directories(path);
+  }
+  ~ScratchFolder() {
+    std::error_code ignored;
+    std::filesystem::remove_all(path, ignored);
+  }
+  ScratchFolder(const ScratchFolder&) = delete;
+  ScratchFolder& operator=(const ScratchFolder&) = delete;
+};
+
+/// This process's scratch folder (made once, under $TMPDIR or /tmp; removed at exit).
 inline const std::filesystem::path& scratch() {
-  static const std::filesystem::path dir = [] {
-    const auto d =
-        std::filesystem::temp_directory_path() / ("mcslam_fuzz_" + std::to_string(::getpid()));
-    std::filesystem::create_directories(d);
-    return d;
-  }();
-  return dir;
+  static const ScratchFolder dir(std::filesystem::temp_directory_path() /
+                                 ("mcslam_fuzz_" + std::to_string(::getpid())));
+  return dir.path;
 }
 
 inline std::string write(const std::string& name, std::string_view bytes) {

@@ -9,6 +9,7 @@
 #include <fstream>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <system_error>
 
 #include "mcslam/core/error.hpp"
 #include "mcslam/rosbag2/cdr.hpp"
@@ -23,14 +24,24 @@ using namespace mcslam::rosbag2;
 
 namespace {
 
-fs::path temp_dir() {
-  static const fs::path dir = [] {
-    fs::path d = fs::temp_directory_path() / ("mcslam-rosbag2-test-" + std::to_string(::getpid()));
-    fs::remove_all(d);
-    fs::create_directories(d);
-    return d;
-  }();
-  return dir;
+/// This process's scratch folder, removed with the recordings in it when the process ends.
+struct TempDir {
+  fs::path path = fs::temp_directory_path() / ("mcslam-rosbag2-test-" + std::to_string(::getpid()));
+  TempDir() {
+    fs::remove_all(path);
+    fs::create_directories(path);
+  }
+  ~TempDir() {
+    std::error_code ignored;
+    fs::remove_all(path, ignored);
+  }
+  TempDir(const TempDir&) = delete;
+  TempDir& operator=(const TempDir&) = delete;
+};
+
+const fs::path& temp_dir() {
+  static const TempDir dir;
+  return dir.path;
 }
 
 std::string fresh(const std::string& name) {
