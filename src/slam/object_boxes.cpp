@@ -340,7 +340,7 @@ std::vector<std::uint64_t> points_in_boxes(const features::FrameFeatures& featur
 
 /// Each box's object depth band and median depth: from the features in it alone when it has
 /// some (a cupboard's depth from the part of it a person in front does not hide), else from all
-/// of its features.
+/// of its features; a moving region's at the depth it was last seen at.
 void set_box_depths(std::vector<ObjectBox>& boxes, const features::FrameFeatures& features,
                     const std::vector<std::uint64_t>& mask, double depth_gap) {
   const std::size_t n_boxes = boxes.size();
@@ -355,7 +355,7 @@ void set_box_depths(std::vector<ObjectBox>& boxes, const features::FrameFeatures
   }
   for (std::size_t b = 0; b < n_boxes; ++b) {
     auto& d = exclusive_depths[b].size() >= 5 ? exclusive_depths[b] : box_depths[b];
-    const auto band = object_geometry::object_band(d, depth_gap);
+    const auto band = object_geometry::object_band(d, depth_gap, boxes[b].last_depth);
     if (!band) continue;
     std::vector<float> own;
     for (float z : d)

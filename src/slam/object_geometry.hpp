@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <optional>
 #include <utility>
 #include <vector>
@@ -40,16 +41,25 @@ T median_of(std::vector<T> v) {
 }
 
 /// The object's depth band among the depths of a box's features: they are split into clusters
-/// where sorted depths jump by more than `gap`; the object is the largest cluster.
-inline std::optional<std::pair<float, float>> object_band(std::vector<float> depths, double gap) {
+/// where sorted depths jump by more than `gap`; the object is the largest cluster or, given the
+/// object's depth when it was last seen (`last_depth` > 0), the cluster whose median is nearest
+/// to it: an object's depth changes by its speed times the time since (a person walking, 5 cm
+/// a frame at 30 Hz), while the largest cluster is the background once a box spans most of the
+/// image.
+inline std::optional<std::pair<float, float>> object_band(std::vector<float> depths, double gap,
+                                                          float last_depth = -1.0f) {
   if (depths.empty()) return std::nullopt;
   std::sort(depths.begin(), depths.end());
   std::size_t best_start = 0, best_size = 0, start = 0;
+  float best_offset = std::numeric_limits<float>::infinity();
   for (std::size_t i = 1; i <= depths.size(); ++i) {
     if (i < depths.size() && depths[i] - depths[i - 1] <= gap) continue;
-    if (i - start > best_size) {
-      best_size = i - start;
+    const std::size_t size = i - start;
+    const float offset = std::abs(depths[start + size / 2] - last_depth);
+    if (last_depth > 0.0f ? offset < best_offset : size > best_size) {
+      best_size = size;
       best_start = start;
+      best_offset = offset;
     }
     start = i;
   }

@@ -151,6 +151,7 @@ std::vector<MovingRegion> surviving_movers(const std::vector<ObjectBox>& boxes,
     m.frame = frame_id;
     m.unconfirmed = decisions[b].dynamic ? 0 : boxes[b].unconfirmed + 1;
     m.flat = boxes[b].flat;
+    m.depth = boxes[b].depth > 0.0f ? boxes[b].depth : boxes[b].last_depth;
     if (m.unconfirmed < life) kept.push_back(m);
   }
   return kept;

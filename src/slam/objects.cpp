@@ -168,6 +168,7 @@ void ObjectHandler::carry_movers(std::vector<ObjectBox>& boxes, const Frame& fra
     box.unconfirmed = m.unconfirmed;
     box.age = age;
     box.flat = m.flat;
+    box.last_depth = m.depth;
     boxes.push_back(box);
   }
 }
@@ -298,8 +299,13 @@ MoverResult ObjectHandler::find_movers(const Frame& frame, const SE3& T_c_w,
     for (std::size_t b = 0; b < boxes_.size(); ++b)
       covered = covered || (state[b] != ObjectState::kStatic &&
                             perception::iou(boxes_[b].detection.box, region->box) > 0.5);
-    if (!covered && movers_.size() < kMaxMovers)
-      movers_.push_back(MovingRegion{*region, frame.id, 0, flat});
+    if (!covered && movers_.size() < kMaxMovers) {
+      std::vector<float> depths;
+      for (const auto i : members)
+        if (features.points[i].has_depth()) depths.push_back(features.points[i].depth);
+      const float depth = depths.empty() ? -1.0f : object_geometry::median_of(depths);
+      movers_.push_back(MovingRegion{*region, frame.id, 0, flat, depth});
+    }
   }
   if (result.any) update_exclusions();
   return result;

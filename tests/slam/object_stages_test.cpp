@@ -323,6 +323,30 @@ TEST(ObjectStages, SeedsOfMotionGrowIntoOneRegion) {
   EXPECT_FALSE(mover_region(*f, regions[0], seeds, 2 * static_cast<int>(moved) - 4, options));
 }
 
+TEST(ObjectStages, AMovingRegionsBandStaysAtTheDepthItWasSeenAt) {
+  // A region's box grown over most of the image: the wall behind the person has more features
+  // than the person, so the largest depth cluster is the wall's.
+  std::vector<Pt> pts;
+  add_block(pts, 250, 350, 100, 400, 30, 1.2f, 100);  // the person: 4 x 10 points
+  add_block(pts, 5, 635, 5, 475, 40, 3.0f, 300);      // the wall around it
+  const auto f = frame_of(pts);
+  std::vector<ObjectBox> boxes = {box_at(0, 0, 640, 480, "moving region")};
+  boxes[0].source = BoxSource::kMover;
+  std::vector<ObjectBox> unseen = boxes;
+  assign_features(*f, {}, unseen, DynamicsOptions{});
+  EXPECT_FLOAT_EQ(unseen[0].depth, 3.0f);  // no depth to go by: the largest cluster
+  boxes[0].last_depth = 1.25f;             // seen at 1.25 m a frame before
+  assign_features(*f, {}, boxes, DynamicsOptions{});
+  EXPECT_FLOAT_EQ(boxes[0].depth, 1.2f);
+  EXPECT_FLOAT_EQ(boxes[0].depth_far, 1.2f);
+  // And the region carried on records the depth it has now.
+  std::vector<ObjectDecision> decisions(1);
+  decisions[0].dynamic = true;
+  const auto kept = surviving_movers(boxes, {ObjectState::kDynamic}, decisions, 8, 10);
+  ASSERT_EQ(kept.size(), 1u);
+  EXPECT_FLOAT_EQ(kept[0].depth, 1.2f);
+}
+
 TEST(ObjectStages, MovingRegionsLiveWhileConfirmed) {
   std::vector<ObjectBox> boxes = {box_at(0, 0, 10, 10), box_at(20, 0, 10, 10),
                                   box_at(40, 0, 10, 10), box_at(60, 0, 10, 10)};

@@ -58,6 +58,9 @@ struct ObjectBox {
   int propagated_matches = 0;
   float depth = -1.0f;  ///< median depth of the object's own features (-1: none)
   float depth_near = -1.0f, depth_far = -1.0f;
+  /// Moving regions: the object's depth when it was last seen (-1: unknown); its band is the
+  /// cluster of depths nearest to it (object_geometry::object_band).
+  float last_depth = -1.0f;
   int background_points = 0;
   int unconfirmed = 0;  ///< moving regions: frames without confirmation
   int age = 0;          ///< moving regions: frames since the region was last seen
@@ -70,6 +73,7 @@ struct MovingRegion {
   std::uint64_t frame = 0;
   int unconfirmed = 0;  ///< frames since evidence last confirmed it
   bool flat = false;    ///< found on a frame plane seen to move
+  float depth = -1.0f;  ///< the object's median depth when last seen (-1: unknown)
 };
 
 /// The boxes each feature of a frame belongs to (bit b: box b).
