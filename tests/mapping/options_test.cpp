@@ -56,6 +56,10 @@ TEST(OccupancyOptions, RangeBandAndProbabilityErrors) {
       "upside down");
   expect_error([](OccupancyOptions& o) { o.band_max = o.band_min; }, "mapping.band_min");
   expect_error([](OccupancyOptions& o) { o.depth_noise_k = -1.0; }, "mapping.depth_noise_k");
+  expect_error([](OccupancyOptions& o) { o.spread_yield_ratio = -0.5; },
+               "mapping.spread_yield_ratio");
+  expect_error([](OccupancyOptions& o) { o.spread_yield_ratio = std::nan(""); },
+               "mapping.spread_yield_ratio");
   expect_error([](OccupancyOptions& o) { o.prob_hit = 0.4; }, "mapping.prob_hit");
   expect_error([](OccupancyOptions& o) { o.prob_miss = 0.6; }, "mapping.prob_miss");
   expect_error([](OccupancyOptions& o) { o.clamp_max = 0.4; }, "mapping.clamp_max");
