@@ -161,6 +161,8 @@ std::vector<Field> mcslam_fields(PinholeCamera& c, SystemOptions& o) {
       {"dynamics.mover_link_depth", &t.dynamics.mover_link_depth},
       {"dynamics.mover_min_seeds", &t.dynamics.mover_min_seeds},
       {"dynamics.mover_seed_share", &t.dynamics.mover_seed_share},
+      {"dynamics.mover_max_width", &t.dynamics.mover_max_width},
+      {"dynamics.mover_max_height", &t.dynamics.mover_max_height},
       {"dynamics.constraints", &t.dynamics.constraints},
       {"dynamics.constraint_distance", &t.dynamics.constraint_distance},
       {"dynamics.constraint_angle_deg", &t.dynamics.constraint_angle_deg},

@@ -68,6 +68,10 @@ std::optional<std::string> DynamicsOptions::check() const {
   if (mover_min_seeds < 1) return "dynamics.mover_min_seeds must be >= 1";
   if (!(mover_seed_share > 0.0 && mover_seed_share <= 1.0))
     return "dynamics.mover_seed_share must be in (0, 1]";
+  if (!(mover_max_width > 0.0 && mover_max_width <= 100.0))
+    return "dynamics.mover_max_width must be in (0, 100] (metres)";
+  if (!(mover_max_height > 0.0 && mover_max_height <= 100.0))
+    return "dynamics.mover_max_height must be in (0, 100] (metres)";
   if (!(constraint_distance > 0.0)) return "dynamics.constraint_distance must be > 0 (metres)";
   if (!(constraint_angle_deg > 0.0)) return "dynamics.constraint_angle_deg must be > 0";
   if (min_constraint_points < 1) return "dynamics.min_constraint_points must be >= 1";

@@ -237,6 +237,27 @@ std::vector<cv::Rect2f> frame_plane_extents(const features::FrameFeatures& featu
   return plane_extent;
 }
 
+namespace {
+
+/// Limits a grown region's box to the image of an object mover_max_width x mover_max_height at
+/// the depth the region was last seen at: along an axis where it would be larger, it does not
+/// grow.
+void keep_object_size(cv::Rect2f& region, const ObjectBox& box, const PinholeCamera& camera,
+                      const DynamicsOptions& options, const cv::Rect2f& image) {
+  const cv::Rect2f was = box.detection.box & image;
+  const double z = box.last_depth;
+  if (region.width > camera.fx * options.mover_max_width / z) {
+    region.x = was.x;
+    region.width = was.width;
+  }
+  if (region.height > camera.fy * options.mover_max_height / z) {
+    region.y = was.y;
+    region.height = was.height;
+  }
+}
+
+}  // namespace
+
 void grow_flat_movers(std::vector<ObjectBox>& boxes, const features::FrameFeatures& features,
                       const std::vector<cv::Rect2f>& plane_extent, const PinholeCamera& camera,
                       const DynamicsOptions& options) {
@@ -271,6 +292,7 @@ void grow_flat_movers(std::vector<ObjectBox>& boxes, const features::FrameFeatur
       extent.height += 1.0f;
       region |= extent & bound;
     }
+    if (box.last_depth > 0.0f) keep_object_size(region, box, camera, options, image);
     box.detection.box = region;
   }
 }

@@ -347,6 +347,36 @@ TEST(ObjectStages, AMovingRegionsBandStaysAtTheDepthItWasSeenAt) {
   EXPECT_FLOAT_EQ(kept[0].depth, 1.2f);
 }
 
+TEST(ObjectStages, AFlatMovingRegionGrowsWithItsPlaneUpToAnObjectsSize) {
+  // A frame plane with most of its points inside the region's box: the box grows towards the
+  // plane's extent by propagation_radius (30 px) a side.
+  std::vector<Pt> pts;
+  for (int i = 0; i < 10; ++i) pts.push_back({310.0f + 8.0f * i, 200.0f, 4.0f, i, 0});
+  pts.push_back({50.0f, 200.0f, 4.0f, 20, 0});
+  const auto f = frame_of(pts, {features::PlaneFeature{}});
+  const std::vector<cv::Rect2f> plane_extent = {cv::Rect2f(0, 100, 640, 200)};
+  const PinholeCamera camera = test::make_camera();
+  ObjectBox region = box_at(300, 100, 100, 200, "moving region");
+  region.source = BoxSource::kMover;
+  region.flat = true;
+  std::vector<ObjectBox> unknown_depth = {region};
+  grow_flat_movers(unknown_depth, *f, plane_extent, camera, DynamicsOptions{});
+  EXPECT_FLOAT_EQ(unknown_depth[0].detection.box.width, 160.0f);
+  EXPECT_FLOAT_EQ(unknown_depth[0].detection.box.height, 201.0f);
+  // Seen 4 m away: 1 m is 131 px, 2 m 262 px. It does not grow wider; it grows taller.
+  region.last_depth = 4.0f;
+  std::vector<ObjectBox> far = {region};
+  grow_flat_movers(far, *f, plane_extent, camera, DynamicsOptions{});
+  EXPECT_FLOAT_EQ(far[0].detection.box.x, 300.0f);
+  EXPECT_FLOAT_EQ(far[0].detection.box.width, 100.0f);
+  EXPECT_FLOAT_EQ(far[0].detection.box.height, 201.0f);
+  // 8 m away, 2 m is 131 px: it does not grow taller either.
+  region.last_depth = 8.0f;
+  std::vector<ObjectBox> farther = {region};
+  grow_flat_movers(farther, *f, plane_extent, camera, DynamicsOptions{});
+  EXPECT_FLOAT_EQ(farther[0].detection.box.height, 200.0f);
+}
+
 TEST(ObjectStages, MovingRegionsLiveWhileConfirmed) {
   std::vector<ObjectBox> boxes = {box_at(0, 0, 10, 10), box_at(20, 0, 10, 10),
                                   box_at(40, 0, 10, 10), box_at(60, 0, 10, 10)};

@@ -387,6 +387,12 @@ TEST(ObjectHandler, OptionsCheckNamesTheNewFields) {
   o.mover_seed_share = 1.5;
   EXPECT_NE(o.check()->find("dynamics.mover_seed_share"), std::string::npos);
   o = DynamicsOptions{};
+  o.mover_max_width = 0.0;
+  EXPECT_NE(o.check()->find("dynamics.mover_max_width"), std::string::npos);
+  o = DynamicsOptions{};
+  o.mover_max_height = -2.0;
+  EXPECT_NE(o.check()->find("dynamics.mover_max_height"), std::string::npos);
+  o = DynamicsOptions{};
   EXPECT_TRUE(o.self_moving("person"));
   EXPECT_FALSE(o.self_moving("chair"));
   o.person_prior = false;

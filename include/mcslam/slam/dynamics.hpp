@@ -162,6 +162,15 @@ struct DynamicsOptions {
   double mover_link_depth = 0.15;
   int mover_min_seeds = 8;
   double mover_seed_share = 0.5;
+  /// A moving region found on a moving plane grows with the plane (the object coming into
+  /// view), but its box stays within the image of an object this wide and tall (metres) at the
+  /// depth it was last seen at: a person with a swinging arm or a cart is at most 1 m wide and
+  /// 2 m tall; a box beyond that has taken the scene around the object (a room where an unboxed
+  /// person fills 45 % of the view: the region's box grew to the whole image, ATE 0.0060 m and
+  /// 0.0059 m on two rooms; within 1 x 2 m, 0.0069 and 0.0032 m, the online poses 0.0089 and
+  /// 0.0057 m).
+  double mover_max_width = 1.0;
+  double mover_max_height = 2.0;
 
   // --- Algorithm 2 ---
   bool constraints = true;
