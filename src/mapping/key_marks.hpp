@@ -13,11 +13,10 @@ namespace mcslam::mapping::detail {
 
 /// A set of octree keys with a mask of roles per key (a ray crossed it, a static sample hit it,
 /// ...) and counts of the samples that did so, kept for one keyframe's integration and then
-/// cleared. A keyframe touches 10^4-10^5
-/// voxels, most of them many times (the rays of nearby samples cross the same voxels): an open
-/// addressing table of the keys packed in 48 bits, whose slots carry the generation that wrote
-/// them, so that clearing is O(1) and nothing is allocated once the table has grown. Keys are
-/// listed in the order they were first marked.
+/// cleared. A keyframe touches 10^4-10^5 voxels, most of them many times (the rays of nearby
+/// samples cross the same voxels): an open addressing table of the keys packed in 48 bits, whose
+/// slots carry the generation that wrote them, so that clearing is O(1) and nothing is allocated
+/// once the table has grown. Keys are listed in the order they were first marked.
 class KeyMarks {
  public:
   struct Entry {

@@ -356,25 +356,26 @@ TEST(ObjectStages, AFlatMovingRegionGrowsWithItsPlaneUpToAnObjectsSize) {
   const auto f = frame_of(pts, {features::PlaneFeature{}});
   const std::vector<cv::Rect2f> plane_extent = {cv::Rect2f(0, 100, 640, 200)};
   const PinholeCamera camera = test::make_camera();
-  ObjectBox region = box_at(300, 100, 100, 200, "moving region");
-  region.source = BoxSource::kMover;
-  region.flat = true;
-  std::vector<ObjectBox> unknown_depth = {region};
-  grow_flat_movers(unknown_depth, *f, plane_extent, camera, DynamicsOptions{});
-  EXPECT_FLOAT_EQ(unknown_depth[0].detection.box.width, 160.0f);
-  EXPECT_FLOAT_EQ(unknown_depth[0].detection.box.height, 201.0f);
+  // The region's box after one frame's growth, last seen at `depth` (<= 0: unknown).
+  const auto grown_at = [&](float depth) {
+    ObjectBox region = box_at(300, 100, 100, 200, "moving region");
+    region.source = BoxSource::kMover;
+    region.flat = true;
+    region.last_depth = depth;
+    std::vector<ObjectBox> boxes = {region};
+    grow_flat_movers(boxes, *f, plane_extent, camera, DynamicsOptions{});
+    return boxes[0].detection.box;
+  };
+  const cv::Rect2f unknown_depth = grown_at(-1.0f);
+  EXPECT_FLOAT_EQ(unknown_depth.width, 160.0f);
+  EXPECT_FLOAT_EQ(unknown_depth.height, 201.0f);
   // Seen 4 m away: 1 m is 131 px, 2 m 262 px. It does not grow wider; it grows taller.
-  region.last_depth = 4.0f;
-  std::vector<ObjectBox> far = {region};
-  grow_flat_movers(far, *f, plane_extent, camera, DynamicsOptions{});
-  EXPECT_FLOAT_EQ(far[0].detection.box.x, 300.0f);
-  EXPECT_FLOAT_EQ(far[0].detection.box.width, 100.0f);
-  EXPECT_FLOAT_EQ(far[0].detection.box.height, 201.0f);
+  const cv::Rect2f far = grown_at(4.0f);
+  EXPECT_FLOAT_EQ(far.x, 300.0f);
+  EXPECT_FLOAT_EQ(far.width, 100.0f);
+  EXPECT_FLOAT_EQ(far.height, 201.0f);
   // 8 m away, 2 m is 131 px: it does not grow taller either.
-  region.last_depth = 8.0f;
-  std::vector<ObjectBox> farther = {region};
-  grow_flat_movers(farther, *f, plane_extent, camera, DynamicsOptions{});
-  EXPECT_FLOAT_EQ(farther[0].detection.box.height, 200.0f);
+  EXPECT_FLOAT_EQ(grown_at(8.0f).height, 200.0f);
 }
 
 TEST(ObjectStages, MovingRegionsLiveWhileConfirmed) {
