@@ -20,6 +20,20 @@ std::size_t hash(std::uint64_t packed, int bits) {
 
 KeyMarks::KeyMarks() : slots_(std::size_t{1} << 16), bits_(16) {}
 
+void KeyMarks::set_window(const octomap::OcTreeKey& lo, const octomap::OcTreeKey& hi) {
+  nx_ = ny_ = nz_ = 0;
+  if (hi[0] < lo[0] || hi[1] < lo[1] || hi[2] < lo[2]) return;
+  const std::size_t nx = std::size_t{hi[0]} - lo[0] + 1, ny = std::size_t{hi[1]} - lo[1] + 1,
+                    nz = std::size_t{hi[2]} - lo[2] + 1;
+  if (nx * ny * nz > kMaxWindowCells) return;
+  // Every cell is 0 here (clear() zeroes what was marked), new ones too.
+  if (cells_.size() < nx * ny * nz) cells_.resize(nx * ny * nz, 0);
+  lo_ = lo;
+  nx_ = nx;
+  ny_ = ny;
+  nz_ = nz;
+}
+
 std::size_t KeyMarks::find(std::uint64_t packed) const {
   const std::size_t mask = slots_.size() - 1;
   std::size_t i = hash(packed, bits_);
@@ -27,23 +41,21 @@ std::size_t KeyMarks::find(std::uint64_t packed) const {
   return i;
 }
 
-KeyMarks::Marked KeyMarks::mark(const octomap::OcTreeKey& key, std::uint8_t role) {
+KeyMarks::Marked KeyMarks::mark_in_table(const octomap::OcTreeKey& key, std::uint8_t role) {
   const std::uint64_t packed = pack(key);
   Slot& slot = slots_[find(packed)];
-  if (slot.generation == generation_) {
-    std::uint8_t& roles = entries_[slot.entry].roles;
-    const bool added = (roles | role) != roles;
-    roles |= role;
-    return {slot.entry, added};
-  }
+  if (slot.generation == generation_) return add_role(slot.entry, role);
   const std::size_t entry = entries_.size();
   slot = {packed, static_cast<std::uint32_t>(entry), generation_};
   entries_.push_back({key, role, 0, 0, 0});
-  if (2 * entries_.size() > slots_.size()) grow();  // at most half full: short probes
+  ++in_table_;
+  if (2 * in_table_ > slots_.size()) grow();  // at most half full: short probes
   return {entry, true};
 }
 
 std::uint8_t KeyMarks::roles(const octomap::OcTreeKey& key) const {
+  const std::size_t cell = window_cell(key);
+  if (cell != kNoCell) return cells_[cell] != 0 ? entries_[cells_[cell] - 1].roles : 0;
   const Slot& slot = slots_[find(pack(key))];
   return slot.generation == generation_ ? entries_[slot.entry].roles : std::uint8_t{0};
 }
@@ -53,13 +65,20 @@ void KeyMarks::grow() {
   ++bits_;
   generation_ = 1;
   for (std::size_t e = 0; e < entries_.size(); ++e) {
+    if (window_cell(entries_[e].key) != kNoCell) continue;
     const std::uint64_t packed = pack(entries_[e].key);
     slots_[find(packed)] = {packed, static_cast<std::uint32_t>(e), generation_};
   }
 }
 
 void KeyMarks::clear() {
+  for (const Entry& e : entries_) {
+    const std::size_t cell = window_cell(e.key);
+    if (cell != kNoCell) cells_[cell] = 0;
+  }
+  nx_ = ny_ = nz_ = 0;
   entries_.clear();
+  in_table_ = 0;
   if (++generation_ == 0) {  // wrapped: no slot may look used
     std::fill(slots_.begin(), slots_.end(), Slot{});
     generation_ = 1;

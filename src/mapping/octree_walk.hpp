@@ -5,7 +5,11 @@
 #include <octomap/OcTree.h>
 
 #include <Eigen/Core>
+#include <algorithm>
+#include <array>
+#include <bit>
 #include <cstddef>
+#include <cstdint>
 
 namespace mcslam::mapping::detail {
 
@@ -36,6 +40,52 @@ inline std::size_t voxels_in_leaf(double size, double res) {
   const auto n = static_cast<std::size_t>(size / res + 0.5);
   return n * n * n;
 }
+
+/// OcTree::search(key) at the finest depth, for keys in sequence: it starts from the deepest
+/// node the key shares with the key before (the voxels of one keyframe, listed along its rays,
+/// share most of their path from the root; a search from the root walks 16 nodes). The tree
+/// may grow between calls, but no node may be deleted (lazy updates delete none; prune() does).
+class LeafFinder {
+ public:
+  explicit LeafFinder(const octomap::OcTree& tree) : tree_(tree) {}
+
+  /// The leaf holding the key, or nullptr where the tree has no node (unknown space).
+  const octomap::OcTreeNode* find(const octomap::OcTreeKey& key) {
+    constexpr int kDepth = 16;  // octomap::OcTree's
+    const octomap::OcTreeNode* root = tree_.getRoot();
+    if (root == nullptr) {
+      depth_ = -1;
+      return nullptr;
+    }
+    int d = 0;
+    if (depth_ >= 0 && path_[0] == root) {
+      // The path down to depth d follows the keys' top d bits.
+      const auto diff = static_cast<std::uint16_t>(
+          (key[0] ^ previous_[0]) | (key[1] ^ previous_[1]) | (key[2] ^ previous_[2]));
+      d = std::min(std::countl_zero(diff), depth_);
+    }
+    path_[0] = root;
+    previous_ = key;
+    const octomap::OcTreeNode* node = path_[static_cast<std::size_t>(d)];
+    while (d < kDepth && tree_.nodeHasChildren(node)) {
+      const unsigned child = octomap::computeChildIdx(key, kDepth - 1 - d);
+      if (!tree_.nodeChildExists(node, child)) {
+        depth_ = d;
+        return nullptr;
+      }
+      node = tree_.getNodeChild(node, child);
+      path_[static_cast<std::size_t>(++d)] = node;
+    }
+    depth_ = d;
+    return node;
+  }
+
+ private:
+  const octomap::OcTree& tree_;
+  std::array<const octomap::OcTreeNode*, 17> path_{};  ///< the previous key's, root first
+  int depth_ = -1;                                     ///< the depth of its deepest node; -1: none
+  octomap::OcTreeKey previous_;
+};
 
 inline octomap::point3d to_point(const Eigen::Vector3d& p) {
   return {static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z())};

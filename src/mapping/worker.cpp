@@ -128,12 +128,25 @@ void MappingWorker::with_map(const std::function<void(const OccupancyMap&)>& fn)
 
 std::size_t MappingWorker::pending() const { return pending_.load(); }
 
+void MappingWorker::settle() {
+  if (!worker_ || failure_->failed()) return;
+  post_guarded([this] {
+    // The same voxels in fewer nodes: no new version, but the next snapshot is built anew (its
+    // node count and memory changed).
+    const std::lock_guard<std::mutex> lock(map_mutex_);
+    map_.settle();
+    cached_.reset();
+  });
+}
+
 void MappingWorker::wait() {
+  settle();
   if (worker_) worker_->wait();
   failure_->throw_if_failed();
 }
 
 void MappingWorker::finish() {
+  settle();
   worker_.reset();  // runs what is queued, then joins
   failure_->throw_if_failed();
 }

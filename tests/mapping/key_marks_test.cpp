@@ -6,6 +6,8 @@
 #include <map>
 #include <random>
 #include <tuple>
+#include <utility>
+#include <vector>
 
 namespace mcslam::mapping::detail {
 namespace {
@@ -18,16 +20,26 @@ octomap::OcTreeKey key_of(const Key& k) {
                             static_cast<octomap::key_type>(std::get<2>(k)));
 }
 
-TEST(KeyMarks, HoldsTheSameRolesAsAMapAcrossGrowthAndClears) {
+TEST(KeyMarks, HoldsTheSameRolesAsAMapAcrossGrowthWindowsAndClears) {
   KeyMarks marks;
   std::mt19937 rng(7);
   // Keys around the octree's centre (32768), as a keyframe's voxels are, some marked many times.
   std::uniform_int_distribution<int> coord(32768 - 60, 32768 + 60);
   std::uniform_int_distribution<int> role_bit(0, 3);
-  for (int round = 0; round < 3; ++round) {
+  // Round by round: no window; a window over part of the keys (the rest in the table, which
+  // grows); the whole range; a window whose box is too large (the table alone); part again,
+  // moved.
+  const std::vector<std::pair<Key, Key>> windows = {
+      {{1, 1, 1}, {0, 0, 0}},
+      {{32768 - 30, 32768 - 60, 32768 - 20}, {32768 + 40, 32768 + 10, 32768 + 60}},
+      {{32768 - 60, 32768 - 60, 32768 - 60}, {32768 + 60, 32768 + 60, 32768 + 60}},
+      {{0, 0, 0}, {65535, 65535, 65535}},
+      {{32768 - 10, 32768 - 20, 32768 - 60}, {32768 + 60, 32768 + 60, 32768 + 5}}};
+  for (std::size_t round = 0; round < windows.size(); ++round) {
+    marks.set_window(key_of(windows[round].first), key_of(windows[round].second));
     std::map<Key, std::uint8_t> expected;
     std::vector<Key> order;
-    const int n = round == 1 ? 200000 : 3000;  // the second round grows the table
+    const int n = round == 1 || round == 3 ? 200000 : 3000;  // these grow the table
     for (int i = 0; i < n; ++i) {
       const Key k{coord(rng), coord(rng), coord(rng)};
       const auto role = static_cast<std::uint8_t>(1u << role_bit(rng));

@@ -5,6 +5,7 @@
 
 #include <cstdio>
 #include <opencv2/imgproc.hpp>
+#include <sstream>
 
 #include "mapping/box_world.hpp"
 #include "mcslam/core/error.hpp"
@@ -416,6 +417,42 @@ TEST(OccupancyMap, StoredSamplesRebuildTheSameMap) {
   EXPECT_EQ(loaded.stats().keyframes, 3u);
   EXPECT_EQ(loaded.stats().rebuilds, 1u);
   EXPECT_EQ(loaded.stats().occupied_voxels, map.stats().occupied_voxels);
+}
+
+TEST(OccupancyMap, SettlingWhenTheTreeDoublesGivesTheTreeOfSettlingEachKeyframe) {
+  // Integrating settles (updates the inner nodes, prunes) only when the tree has doubled; after
+  // settle() the octree is the one settled after every keyframe, node for node.
+  BoxWorld world;
+  world.boxes.push_back({{4.0, 2.3, 0.012}, {4.45, 2.75, 0.9}, false, {30, 120, 30}});
+  const PinholeCamera cam = test::make_camera();
+  const auto poses = wall_path(6);
+  OccupancyMap each, deferred;
+  std::size_t unsettled = 0;
+  for (std::size_t i = 0; i < poses.size(); ++i) {
+    const KeyframeDepth kf = world.render(i, poses[i], cam);
+    each.insert(kf);
+    each.settle();
+    deferred.insert(kf);
+    if (deferred.octree().size() != each.octree().size()) ++unsettled;
+  }
+  EXPECT_GT(unsettled, 0u) << "the deferred map was settled after every keyframe too";
+  deferred.settle();
+  std::ostringstream a, b;
+  each.octree().writeBinaryData(a);
+  deferred.octree().writeBinaryData(b);
+  EXPECT_EQ(a.str(), b.str());
+  EXPECT_EQ(deferred.octree().size(), each.octree().size());
+  const octomap::OcTree& t = each.octree();
+  const octomap::OcTree& u = deferred.octree();
+  std::size_t inner = 0;
+  for (auto it = t.begin_tree(), end = t.end_tree(); it != end; ++it) {
+    if (it.getDepth() == 0) continue;  // search(key, 0) searches to the finest depth
+    const octomap::OcTreeNode* other = u.search(it.getKey(), it.getDepth());
+    ASSERT_NE(other, nullptr);
+    ASSERT_EQ(other->getLogOdds(), it->getLogOdds()) << "depth " << it.getDepth();
+    inner += it.isLeaf() ? 0 : 1;
+  }
+  EXPECT_GT(inner, 0u);
 }
 
 }  // namespace

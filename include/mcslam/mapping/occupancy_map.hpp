@@ -220,6 +220,11 @@ class OccupancyMap {
   bool correct(const std::unordered_map<KeyframeId, SE3>& T_w_c, bool listed_only = false);
   /// Clears the octree and integrates every stored keyframe again.
   void rebuild();
+  /// Updates the octree's inner nodes and merges the children that agree into their parent.
+  /// Integrating (insert(), correct(), ...) does so only when the tree has doubled since the
+  /// last time (it walks the whole tree): the voxels' states are the same either way, but call
+  /// it before reading the inner nodes of octree() or writing it (MappingWorker::wait() does).
+  void settle();
 
   VoxelState state(const Eigen::Vector3d& p_world) const;
   /// The occupied leaves, sorted by position (deterministic).

@@ -81,7 +81,8 @@ class MappingWorker {
   /// Keyframes and corrections queued and not integrated yet.
   std::size_t pending() const;
 
-  /// Blocks until everything queued so far is integrated. Throws std::runtime_error ("the
+  /// Blocks until everything queued so far is integrated and the map settled
+  /// (OccupancyMap::settle()). Throws std::runtime_error ("the
   /// mapping thread (<name>) failed: <what>") when the thread failed.
   void wait();
   /// wait(), then stops the thread: later keyframes and corrections are dropped. Throws as
@@ -94,6 +95,8 @@ class MappingWorker {
  private:
   /// Queues body on the thread; its exception is kept in failure_, and after one nothing runs.
   void post_guarded(std::function<void()> body);
+  /// Queues OccupancyMap::settle().
+  void settle();
   /// A job on the map under its lock.
   void run(const std::function<void(OccupancyMap&)>& job);
 
