@@ -386,8 +386,8 @@ void OccupancyMap::Impl::integrate(const KeyframeSamples& s) {
     }
   }
   // Settling walks the whole tree: run after every keyframe it was 13 % of the mapping thread's
-  // time on Bonn crowd part1 (perf). It runs when the tree has doubled since it last ran, which bounds
-  // the memory of the leaves not merged yet to the settled tree's, and on settle().
+  // time on Bonn crowd part1 (perf). It runs when the tree has doubled since it last ran, which
+  // bounds the memory of the leaves not merged yet to the settled tree's, and on settle().
   if (tree.size() > 2 * settled_size) settle();
 }
 
