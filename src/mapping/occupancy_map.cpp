@@ -4,13 +4,19 @@
 
 #include <algorithm>
 #include <cmath>
+#include <condition_variable>
+#include <exception>
 #include <iterator>
 #include <map>
+#include <mutex>
 #include <opencv2/imgproc.hpp>
 #include <string>
+#include <system_error>
+#include <thread>
 #include <tuple>
 #include <utility>
 
+#include "mapping/collector.hpp"
 #include "mapping/key_marks.hpp"
 #include "mapping/octree_walk.hpp"
 #include "mcslam/core/error.hpp"
@@ -19,10 +25,11 @@ namespace mcslam::mapping {
 
 namespace {
 
-struct ColourSum {
-  std::uint32_t b = 0, g = 0, r = 0, n = 0;
-};
-
+using detail::ColourSum;
+using detail::kCrossed;
+using detail::kHit;
+using detail::kMoverHit;
+using detail::kSpreadHit;
 using ColourMap = std::unordered_map<octomap::OcTreeKey, ColourSum, octomap::OcTreeKey::KeyHash>;
 
 void check_image(const cv::Mat& image, int type, const KeyframeDepth& kf, const char* what) {
@@ -134,16 +141,9 @@ struct OccupancyMap::Impl {
   double last_rebuild_ms = 0.0;
   float hit_log = 0.0f;
   float miss_log = 0.0f;
-  // What one integration's samples did to each voxel (the scratch space is kept).
-  static constexpr std::uint8_t kCrossed = 1;     ///< a ray freed it
-  static constexpr std::uint8_t kHit = 2;         ///< a static sample hit it
-  static constexpr std::uint8_t kMoverHit = 4;    ///< a mover's sample hit it
-  static constexpr std::uint8_t kRayEnd = 8;      ///< a ray was cast to its centre
-  static constexpr std::uint8_t kSpreadHit = 16;  ///< a static sample's spread hit reached it
-  detail::KeyMarks marks;
-  std::vector<ColourSum> hit_colours;  ///< the colours of the samples in each marked voxel
-  octomap::KeySet volatile_keys;       ///< voxels a mover marked last (across keyframes)
-  octomap::KeyRay ray;
+  /// What one integration's samples did to each voxel (the scratch space is kept).
+  detail::Collector collector;
+  octomap::KeySet volatile_keys;  ///< voxels a mover marked last (across keyframes)
 
   explicit Impl(const OccupancyOptions& o) : options(o), tree(o.resolution) { configure(); }
   /// A deep copy: the octree's nodes are copied, the keyframes' sample images shared (they
@@ -159,78 +159,6 @@ struct OccupancyMap::Impl {
     tree.setClampingThresMax(options.clamp_max);
     hit_log = octomap::logodds(options.prob_hit);
     miss_log = octomap::logodds(options.prob_miss);
-  }
-
-  /// Notes a free ray from the keyframe's origin to the voxel holding `to` (that voxel not
-  /// freed); cast_rays() casts one ray per such voxel, weighted by the samples that end there:
-  /// nearby samples of a keyframe (9 per voxel side at 1 m with the default step) would cross
-  /// the same voxels again.
-  void add_free(const Eigen::Vector3d& to) {
-    octomap::OcTreeKey end;
-    if (!tree.coordToKeyChecked(to.x(), to.y(), to.z(), end)) return;
-    marks.count_end(marks.mark(end, kRayEnd).entry);
-  }
-
-  /// Sets the marks' window to the voxels the keyframe's samples can touch: the box around its
-  /// view's pyramid, from the origin to depth max_range (hits are nearer, rays end there), and a
-  /// voxel more each way.
-  void set_view_window(const KeyframeSamples& s) {
-    const Eigen::Matrix3d R = s.T_w_c.rotation();
-    const Eigen::Vector3d o = s.T_w_c.translation();
-    Eigen::Vector3d lo = o, hi = o;
-    const int last_i = s.depth_mm.cols - 1, last_j = s.depth_mm.rows - 1;
-    for (const auto& [i, j] : {std::pair{0, 0}, {last_i, 0}, {0, last_j}, {last_i, last_j}}) {
-      const Eigen::Vector3d corner = o + options.max_range * (R * s.ray(i, j));
-      lo = lo.cwiseMin(corner);
-      hi = hi.cwiseMax(corner);
-    }
-    lo.array() -= options.resolution;
-    hi.array() += options.resolution;
-    octomap::OcTreeKey lo_key, hi_key;
-    if (tree.coordToKeyChecked(lo.x(), lo.y(), lo.z(), lo_key) &&
-        tree.coordToKeyChecked(hi.x(), hi.y(), hi.z(), hi_key))
-      marks.set_window(lo_key, hi_key);
-  }
-
-  /// Frees the voxels crossed by the rays add_free() noted, from `origin` to the centre of each
-  /// end voxel, each crossing counted once per sample whose ray ends there.
-  void cast_rays(const Eigen::Vector3d& origin) {
-    const octomap::point3d from = detail::to_point(origin);
-    const std::size_t noted = marks.entries().size();
-    for (std::size_t e = 0; e < noted; ++e) {
-      const detail::KeyMarks::Entry end = marks.entries()[e];  // a copy: marking may grow them
-      if ((end.roles & kRayEnd) == 0) continue;
-      if (!tree.computeRayKeys(from, tree.keyToCoord(end.key), ray)) continue;
-      for (const auto& key : ray) marks.add_rays(marks.mark(key, kCrossed).entry, end.ends);
-    }
-  }
-
-  /// Calls hit(key, false) for the voxel of the point p = o + z * dir_z and hit(key, true) for
-  /// the others within sigma of it towards the camera (dir_z: the ray at unit depth).
-  template <typename Hit>
-  void add_hit(const Eigen::Vector3d& o, const Eigen::Vector3d& dir_z, double z, double sigma,
-               Hit&& hit) {
-    const Eigen::Vector3d p = o + z * dir_z;
-    octomap::OcTreeKey key;
-    if (!tree.coordToKeyChecked(p.x(), p.y(), p.z(), key)) return;
-    hit(key, false);
-    // The hit spreads towards the camera only (to z - sigma): the surface lies within sigma of
-    // the measured point, and behind the point lies what no ray of any keyframe will ever
-    // cross to free, so a hit spread there would stay (synthetic walk, Kinect-like noise: 2.0 %
-    // ghost voxels spreading both ways, 0.58 % towards the camera only; completeness 99.2 and
-    // 98.3 %). A voxel that only spread hits reached yields to the rays of the same keyframe
-    // that cross it (OccupancyOptions::spread_yield_ratio).
-    if (sigma < 0.05 * options.resolution) return;
-    const Eigen::Vector3d near = o + (z - sigma) * dir_z;
-    // Both ends in one voxel (sigma is below half a voxel up to a few metres): no voxel between
-    // them. The ends' keys as computeRayKeys finds them (from single-precision points).
-    const octomap::point3d near_f = detail::to_point(near), p_f = detail::to_point(p);
-    octomap::OcTreeKey near_key, p_key;
-    if (tree.coordToKeyChecked(near_f, near_key) && tree.coordToKeyChecked(p_f, p_key) &&
-        near_key == p_key)
-      return;
-    if (tree.computeRayKeys(near_f, p_f, ray))
-      for (const auto& k : ray) hit(k, true);
   }
 
   /// The samples of stored keyframe `kf` inside `region` (its box, its depth band) that are
@@ -255,8 +183,8 @@ struct OccupancyMap::Impl {
         kind = KeyframeSamples::kMover;
         if (z > options.max_range) continue;
         const Eigen::Vector3d dir_z = R * kf.ray(i, j);
-        add_hit(o, dir_z, z, options.depth_sigma(z),
-                [&keys](const octomap::OcTreeKey& k, bool) { keys.insert(k); });
+        collector.add_hit(tree, o, dir_z, z, options.depth_sigma(z),
+                          [&keys](const octomap::OcTreeKey& k, bool) { keys.insert(k); });
       }
     }
     volatile_keys.insert(keys.begin(), keys.end());
@@ -295,56 +223,21 @@ struct OccupancyMap::Impl {
   /// The tree's nodes when settle() last ran.
   std::size_t settled_size = 0;
 
-  void collect(const KeyframeSamples& s);
   void integrate(const KeyframeSamples& s);
+  void apply(const detail::Collector& collected);
   void settle();
   void reintegrate_all();
+  void reintegrate_with_helpers(std::size_t helpers);
 };
 
-void OccupancyMap::Impl::collect(const KeyframeSamples& s) {
-  const Eigen::Matrix3d R = s.T_w_c.rotation();
-  const Eigen::Vector3d o = s.T_w_c.translation();
-  const double max_range = options.max_range;
-  set_view_window(s);
-  for (int j = 0; j < s.depth_mm.rows; ++j) {
-    for (int i = 0; i < s.depth_mm.cols; ++i) {
-      const std::uint16_t mm = s.depth_mm.at<std::uint16_t>(j, i);
-      if (mm == 0) continue;
-      const double z = 1e-3 * mm;
-      // The ray at unit depth, in the world frame: p_w = o + z * dir_z.
-      const Eigen::Vector3d dir_z = R * s.ray(i, j);
-      if (z > max_range) {
-        add_free(o + max_range * dir_z);
-        continue;
-      }
-      const double sigma = options.depth_sigma(z);
-      const double z_free = z - options.free_margin_sigmas * sigma;
-      if (z_free > 0.0) add_free(o + z_free * dir_z);
-      const std::uint8_t kind = s.kind.at<std::uint8_t>(j, i);
-      if (kind == KeyframeSamples::kDynamic) continue;
-      const bool mover = kind == KeyframeSamples::kMover;
-      const cv::Vec3b* bgr = s.colour.empty() ? nullptr : &s.colour.at<cv::Vec3b>(j, i);
-      add_hit(o, dir_z, z, sigma, [&](const octomap::OcTreeKey& k, bool sp) {
-        const std::uint8_t role = mover ? kMoverHit : sp ? kSpreadHit : kHit;
-        const std::size_t entry = marks.mark(k, role).entry;
-        if (role == kSpreadHit) marks.count_spread(entry);
-        if (bgr == nullptr || sp) return;
-        if (entry >= hit_colours.size()) hit_colours.resize(marks.entries().size());
-        ColourSum& c = hit_colours[entry];
-        c.b += (*bgr)[0];
-        c.g += (*bgr)[1];
-        c.r += (*bgr)[2];
-        ++c.n;
-      });
-    }
-  }
-  cast_rays(o);
+void OccupancyMap::Impl::integrate(const KeyframeSamples& s) {
+  collector.collect(tree, options, s);
+  apply(collector);
 }
 
-void OccupancyMap::Impl::integrate(const KeyframeSamples& s) {
-  marks.clear();
-  hit_colours.clear();
-  collect(s);
+void OccupancyMap::Impl::apply(const detail::Collector& collected) {
+  const detail::KeyMarks& marks = collected.marks();
+  const std::vector<ColourSum>& hit_colours = collected.colours();
   for (std::size_t e = 0; e < hit_colours.size(); ++e) {
     const ColourSum& c = hit_colours[e];
     if (c.n == 0) continue;
@@ -405,9 +298,102 @@ void OccupancyMap::Impl::reintegrate_all() {
   settled_size = 0;
   colours.clear();
   volatile_keys.clear();
-  for (const auto& s : keyframes) integrate(s);
+  const auto helpers = static_cast<std::size_t>(std::max(0, options.rebuild_threads - 1));
+  if (helpers == 0 || keyframes.size() < 2) {
+    for (const auto& s : keyframes) integrate(s);
+  } else {
+    reintegrate_with_helpers(std::min(helpers, keyframes.size() - 1));
+  }
   ++rebuilds;
   last_rebuild_ms = watch.elapsed_ms();
+}
+
+/// The keyframes' marks are gathered by this thread and `helpers` others into a ring of
+/// collectors (this thread's own and one per helper), each keyframe's as soon as its slot is
+/// free, and applied to the octree in the keyframes' order by this thread: the same map as
+/// integrate() one after the other.
+void OccupancyMap::Impl::reintegrate_with_helpers(std::size_t helpers) {
+  const std::size_t n = keyframes.size(), slots = helpers + 1;
+  std::vector<detail::Collector> ring(slots);
+  std::swap(ring[0], collector);
+  std::vector<std::size_t> ready(slots, n);  // the keyframe each slot holds (n: none)
+  std::mutex mutex;
+  std::condition_variable changed;
+  std::size_t next = 0, applied = 0;
+  bool stop = false;
+  std::exception_ptr failure;
+  // Under the lock: ends the rebuild with the first failure.
+  const auto fail = [&](std::exception_ptr e) {
+    if (!failure) failure = std::move(e);
+    stop = true;
+    changed.notify_all();
+  };
+  // Under the lock: the next keyframe to gather when its slot is free (its keyframe before
+  // applied), else n.
+  const auto claim = [&]() -> std::size_t {
+    return !stop && next < n && next < applied + slots ? next++ : n;
+  };
+  const auto gather = [&](std::unique_lock<std::mutex>& lock, std::size_t k) {
+    lock.unlock();
+    std::exception_ptr error;
+    try {
+      ring[k % slots].collect(tree, options, keyframes[k]);
+    } catch (...) {
+      error = std::current_exception();
+    }
+    lock.lock();
+    if (error) return fail(error);
+    ready[k % slots] = k;
+    changed.notify_all();
+  };
+  const auto help = [&] {
+    std::unique_lock lock(mutex);
+    for (;;) {
+      changed.wait(lock, [&] { return stop || next >= n || next < applied + slots; });
+      const std::size_t k = claim();
+      if (k == n) return;
+      gather(lock, k);
+    }
+  };
+  std::vector<std::thread> threads;
+  try {
+    for (std::size_t h = 0; h < helpers; ++h) threads.emplace_back(help);
+  } catch (const std::system_error&) {
+    // No thread to be had: this one gathers what the others do not.
+  }
+  {
+    std::unique_lock lock(mutex);
+    for (std::size_t i = 0; i < n && !stop; ++i) {
+      while (!stop && ready[i % slots] != i) {
+        const std::size_t k = claim();
+        if (k != n)
+          gather(lock, k);
+        else
+          changed.wait(lock, [&] { return stop || ready[i % slots] == i; });
+      }
+      if (stop) break;
+      lock.unlock();
+      std::exception_ptr error;
+      try {
+        apply(ring[i % slots]);
+      } catch (...) {
+        error = std::current_exception();
+      }
+      lock.lock();
+      if (error) {
+        fail(error);
+        break;
+      }
+      ready[i % slots] = n;
+      applied = i + 1;
+      changed.notify_all();
+    }
+    stop = true;
+    changed.notify_all();
+  }
+  for (std::thread& t : threads) t.join();
+  std::swap(ring[0], collector);
+  if (failure) std::rethrow_exception(failure);
 }
 
 OccupancyMap::OccupancyMap(const OccupancyOptions& options) {

@@ -34,6 +34,8 @@ std::optional<std::string> check_geometry(const OccupancyOptions& o) {
   if (o.mask_dilation_px < 0 || o.mask_dilation_px > 50)
     return "mapping.mask_dilation_px must be in [0, 50] (pixels)";
   if (o.niceness < 0 || o.niceness > 19) return "mapping.niceness must be in [0, 19]";
+  if (o.rebuild_threads < 1 || o.rebuild_threads > 16)
+    return "mapping.rebuild_threads must be in [1, 16]";
   if (!(o.localize_view_period >= 0.0 && o.localize_view_period <= 3600.0))
     return "mapping.localize_view_period must be in [0, 3600] (seconds)";
   return std::nullopt;

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 #include <octomap/OcTree.h>
 
+#include <array>
 #include <cstdio>
 #include <opencv2/imgproc.hpp>
 #include <sstream>
@@ -453,6 +454,40 @@ TEST(OccupancyMap, SettlingWhenTheTreeDoublesGivesTheTreeOfSettlingEachKeyframe)
     inner += it.isLeaf() ? 0 : 1;
   }
   EXPECT_GT(inner, 0u);
+}
+
+TEST(OccupancyMap, RebuildWithHelperThreadsGivesTheMapOfOneThread) {
+  // The rebuild's helpers gather keyframes' marks in parallel; the octree takes them in the
+  // keyframes' order: node for node and colour for colour the map integrated one by one.
+  BoxWorld world;
+  world.boxes.push_back({{4.0, 2.3, 0.012}, {4.45, 2.75, 0.9}, false, {30, 120, 30}});
+  world.boxes.push_back({{3.6, 1.6, 0.012}, {3.9, 1.9, 1.7}, true});
+  world.boxes.push_back({{4.6, 3.1, 0.012}, {5.0, 3.5, 0.8}, false, {90, 20, 160}, true});
+  const auto poses = wall_path(5);
+  const auto bytes = [](const OccupancyMap& m) {
+    std::ostringstream out;
+    m.octree().writeBinaryData(out);
+    return out.str();
+  };
+  OccupancyMap incremental;
+  insert_all(incremental, world, poses);
+  incremental.settle();
+  const auto colours = [](const OccupancyMap& m) {
+    std::vector<std::array<int, 3>> c;
+    for (const auto& v : m.occupied_voxels()) c.push_back({v.rgb[0], v.rgb[1], v.rgb[2]});
+    return c;
+  };
+  for (const int threads : {1, 2, 8}) {  // 8: more helpers than keyframes to gather
+    OccupancyOptions options;
+    options.rebuild_threads = threads;
+    OccupancyMap map(options);
+    insert_all(map, world, poses);
+    map.rebuild();
+    map.settle();
+    EXPECT_EQ(map.stats().rebuilds, 1u);
+    EXPECT_EQ(bytes(map), bytes(incremental)) << threads << " threads";
+    EXPECT_EQ(colours(map), colours(incremental)) << threads << " threads";
+  }
 }
 
 }  // namespace

@@ -65,6 +65,8 @@ TEST(OccupancyOptions, RangeBandAndProbabilityErrors) {
   expect_error([](OccupancyOptions& o) { o.clamp_max = 0.4; }, "mapping.clamp_max");
   expect_error([](OccupancyOptions& o) { o.niceness = -1; }, "mapping.niceness");
   expect_error([](OccupancyOptions& o) { o.niceness = 20; }, "mapping.niceness");
+  expect_error([](OccupancyOptions& o) { o.rebuild_threads = 0; }, "mapping.rebuild_threads");
+  expect_error([](OccupancyOptions& o) { o.rebuild_threads = 17; }, "mapping.rebuild_threads");
   expect_error([](OccupancyOptions& o) { o.localize_view_period = -0.5; },
                "mapping.localize_view_period");
   expect_error([](OccupancyOptions& o) { o.localize_view_period = std::nan(""); },

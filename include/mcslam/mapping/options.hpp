@@ -115,6 +115,13 @@ struct OccupancyOptions {
   /// A pose change (translation in metres, or rotation angle times max_range) below this
   /// fraction of a voxel does not rebuild the map on correct().
   double rebuild_tolerance = 0.25;
+  /// Threads that rebuild the map when a correction moved its keyframes: the mapping thread
+  /// and rebuild_threads - 1 helpers gather the keyframes' voxel marks in parallel, and the
+  /// mapping thread applies them to the octree in the keyframes' order (the map is the same
+  /// for any count). 2: the rebuild after the final bundle adjustment comes when the frames are
+  /// done and every core is free; on Bonn crowd part1 it is the largest single cost of the map
+  /// (1.0-1.5 s for 60-115 keyframes, one thread). At most 16.
+  int rebuild_threads = 2;
 
   /// The sampling step used for a camera: pixel_step, or with 0 (auto) the rule above.
   int effective_pixel_step(const PinholeCamera& camera) const;
