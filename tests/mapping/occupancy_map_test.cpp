@@ -463,25 +463,28 @@ TEST(OccupancyMap, RebuildWithHelperThreadsGivesTheMapOfOneThread) {
   world.boxes.push_back({{4.0, 2.3, 0.012}, {4.45, 2.75, 0.9}, false, {30, 120, 30}});
   world.boxes.push_back({{3.6, 1.6, 0.012}, {3.9, 1.9, 1.7}, true});
   world.boxes.push_back({{4.6, 3.1, 0.012}, {5.0, 3.5, 0.8}, false, {90, 20, 160}, true});
-  const auto poses = wall_path(5);
+  const PinholeCamera cam = test::make_camera();
+  const auto poses = wall_path(4);
+  std::vector<KeyframeDepth> views;
+  for (std::size_t k = 0; k < poses.size(); ++k) views.push_back(world.render(k, poses[k], cam));
   const auto bytes = [](const OccupancyMap& m) {
     std::ostringstream out;
     m.octree().writeBinaryData(out);
     return out.str();
   };
   OccupancyMap incremental;
-  insert_all(incremental, world, poses);
+  for (const KeyframeDepth& view : views) incremental.insert(view);
   incremental.settle();
   const auto colours = [](const OccupancyMap& m) {
     std::vector<std::array<int, 3>> c;
     for (const auto& v : m.occupied_voxels()) c.push_back({v.rgb[0], v.rgb[1], v.rgb[2]});
     return c;
   };
-  for (const int threads : {1, 2, 8}) {  // 8: more helpers than keyframes to gather
+  for (const int threads : {1, 2, 8}) {  // 2: the ring wraps; 8: more helpers than keyframes
     OccupancyOptions options;
     options.rebuild_threads = threads;
     OccupancyMap map(options);
-    insert_all(map, world, poses);
+    for (const KeyframeDepth& view : views) map.insert(view);
     map.rebuild();
     map.settle();
     EXPECT_EQ(map.stats().rebuilds, 1u);
