@@ -4,21 +4,17 @@
 
 #include <algorithm>
 #include <cmath>
-#include <condition_variable>
-#include <exception>
 #include <iterator>
 #include <map>
-#include <mutex>
 #include <opencv2/imgproc.hpp>
 #include <string>
-#include <system_error>
-#include <thread>
 #include <tuple>
 #include <utility>
 
 #include "mapping/collector.hpp"
 #include "mapping/key_marks.hpp"
 #include "mapping/octree_walk.hpp"
+#include "mapping/ordered_pipeline.hpp"
 #include "mcslam/core/error.hpp"
 
 namespace mcslam::mapping {
@@ -309,91 +305,16 @@ void OccupancyMap::Impl::reintegrate_all() {
 }
 
 /// The keyframes' marks are gathered by this thread and `helpers` others into a ring of
-/// collectors (this thread's own and one per helper), each keyframe's as soon as its slot is
-/// free, and applied to the octree in the keyframes' order by this thread: the same map as
-/// integrate() one after the other.
+/// collectors (this thread's own and one per helper) and applied to the octree in the
+/// keyframes' order by this thread: the same map as integrate() one after the other.
 void OccupancyMap::Impl::reintegrate_with_helpers(std::size_t helpers) {
-  const std::size_t n = keyframes.size(), slots = helpers + 1;
-  std::vector<detail::Collector> ring(slots);
+  std::vector<detail::Collector> ring(helpers + 1);
+  std::swap(ring[0], collector);  // its scratch space has grown already (a fresh one is valid too)
+  detail::gather_and_apply_in_order(
+      keyframes.size(), helpers,
+      [&](std::size_t k, std::size_t slot) { ring[slot].collect(tree, options, keyframes[k]); },
+      [&](std::size_t, std::size_t slot) { apply(ring[slot]); });
   std::swap(ring[0], collector);
-  std::vector<std::size_t> ready(slots, n);  // the keyframe each slot holds (n: none)
-  std::mutex mutex;
-  std::condition_variable changed;
-  std::size_t next = 0, applied = 0;
-  bool stop = false;
-  std::exception_ptr failure;
-  // Under the lock: ends the rebuild with the first failure.
-  const auto fail = [&](std::exception_ptr e) {
-    if (!failure) failure = std::move(e);
-    stop = true;
-    changed.notify_all();
-  };
-  // Under the lock: the next keyframe to gather when its slot is free (its keyframe before
-  // applied), else n.
-  const auto claim = [&]() -> std::size_t {
-    return !stop && next < n && next < applied + slots ? next++ : n;
-  };
-  const auto gather = [&](std::unique_lock<std::mutex>& lock, std::size_t k) {
-    lock.unlock();
-    std::exception_ptr error;
-    try {
-      ring[k % slots].collect(tree, options, keyframes[k]);
-    } catch (...) {
-      error = std::current_exception();
-    }
-    lock.lock();
-    if (error) return fail(error);
-    ready[k % slots] = k;
-    changed.notify_all();
-  };
-  const auto help = [&] {
-    std::unique_lock lock(mutex);
-    for (;;) {
-      changed.wait(lock, [&] { return stop || next >= n || next < applied + slots; });
-      const std::size_t k = claim();
-      if (k == n) return;
-      gather(lock, k);
-    }
-  };
-  std::vector<std::thread> threads;
-  try {
-    for (std::size_t h = 0; h < helpers; ++h) threads.emplace_back(help);
-  } catch (const std::system_error&) {
-    // No thread to be had: this one gathers what the others do not.
-  }
-  {
-    std::unique_lock lock(mutex);
-    for (std::size_t i = 0; i < n && !stop; ++i) {
-      while (!stop && ready[i % slots] != i) {
-        const std::size_t k = claim();
-        if (k != n)
-          gather(lock, k);
-        else
-          changed.wait(lock, [&] { return stop || ready[i % slots] == i; });
-      }
-      if (stop) break;
-      lock.unlock();
-      std::exception_ptr error;
-      try {
-        apply(ring[i % slots]);
-      } catch (...) {
-        error = std::current_exception();
-      }
-      lock.lock();
-      if (error) {
-        fail(error);
-        break;
-      }
-      ready[i % slots] = n;
-      applied = i + 1;
-      changed.notify_all();
-    }
-    stop = true;
-    changed.notify_all();
-  }
-  for (std::thread& t : threads) t.join();
-  std::swap(ring[0], collector);
-  if (failure) std::rethrow_exception(failure);
 }
 
 OccupancyMap::OccupancyMap(const OccupancyOptions& options) {
