@@ -294,19 +294,17 @@ void OccupancyMap::Impl::reintegrate_all() {
   settled_size = 0;
   colours.clear();
   volatile_keys.clear();
+  // No more helpers than keyframes beside the one this thread gathers.
   const auto helpers = static_cast<std::size_t>(std::max(0, options.rebuild_threads - 1));
-  if (helpers == 0 || keyframes.size() < 2) {
-    for (const auto& s : keyframes) integrate(s);
-  } else {
-    reintegrate_with_helpers(std::min(helpers, keyframes.size() - 1));
-  }
+  reintegrate_with_helpers(std::min(helpers, keyframes.empty() ? 0 : keyframes.size() - 1));
   ++rebuilds;
   last_rebuild_ms = watch.elapsed_ms();
 }
 
-/// The keyframes' marks are gathered by this thread and `helpers` others into a ring of
-/// collectors (this thread's own and one per helper) and applied to the octree in the
-/// keyframes' order by this thread: the same map as integrate() one after the other.
+/// The keyframes' marks are gathered by this thread and `helpers` others (none: this thread
+/// alone) into a ring of collectors (this thread's own and one per helper) and applied to the
+/// octree in the keyframes' order by this thread: the same map as integrate() one after the
+/// other.
 void OccupancyMap::Impl::reintegrate_with_helpers(std::size_t helpers) {
   std::vector<detail::Collector> ring(helpers + 1);
   std::swap(ring[0], collector);  // its scratch space has grown already (a fresh one is valid too)
