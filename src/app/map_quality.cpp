@@ -66,13 +66,6 @@ SyntheticScene parse_scene(const nlohmann::json& j, double t_first, double t_las
   return scene;
 }
 
-/// A plane n . p + d = 0 of the ground truth's frame in the run's: p_gt = T_gt_est p_est.
-mapping::StaticSurface plane_in(const SE3& T_est_gt, const Eigen::Vector3d& n, double d) {
-  const SE3 T_gt_est = T_est_gt.inverse();
-  return mapping::StaticSurface::plane(T_gt_est.rotation().transpose() * n,
-                                       n.dot(T_gt_est.translation()) + d);
-}
-
 /// The voxels (of the map's resolution, in the run's frame) whose centre-sampled points lie in
 /// the object's first box, above the floor's voxel and farther than a voxel from its final box.
 nlohmann::json first_place(const mapping::OccupancyMap& map, const SyntheticScene& scene,
@@ -139,11 +132,10 @@ std::optional<SyntheticScene> read_synthetic_scene(const std::filesystem::path& 
 
 nlohmann::json evaluate_synthetic_map(const mapping::OccupancyMap& map, const SyntheticScene& scene,
                                       const SE3& T_est_gt) {
-  std::vector<mapping::StaticSurface> surfaces;
-  for (int a = 0; a < 3; ++a) {
-    surfaces.push_back(plane_in(T_est_gt, Eigen::Vector3d::Unit(a), -scene.room_min[a]));
-    surfaces.push_back(plane_in(T_est_gt, -Eigen::Vector3d::Unit(a), scene.room_max[a]));
-  }
+  // The room is a box seen from inside: its walls, floor and ceiling end where they meet.
+  std::vector<mapping::StaticSurface> surfaces = {mapping::StaticSurface::box(
+      T_est_gt * SE3(Eigen::Quaterniond::Identity(), 0.5 * (scene.room_min + scene.room_max)),
+      0.5 * (scene.room_max - scene.room_min))};
   nlohmann::json movers = nlohmann::json::array();
   for (const SyntheticScene::Object& o : scene.objects) {
     if (o.motion == "free") continue;  // people: never a static surface

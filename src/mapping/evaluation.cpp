@@ -38,7 +38,18 @@ Eigen::Vector3d StaticSurface::closest_point(const Eigen::Vector3d& p) const {
   return T_world_box * q;
 }
 
-int count_views(const OccupancyMap& map, const Eigen::Vector3d& p_world) {
+Eigen::Vector3d StaticSurface::normal_at(const Eigen::Vector3d& foot) const {
+  if (kind == Kind::kPlane) return normal;
+  const Eigen::Vector3d q = T_world_box.inverse() * foot;
+  int axis = 0;  // the face the foot lies on: the nearest to it
+  for (int a = 1; a < 3; ++a)
+    if (std::abs(half_size[a] - std::abs(q[a])) < std::abs(half_size[axis] - std::abs(q[axis])))
+      axis = a;
+  return T_world_box.rotation().col(axis);
+}
+
+int count_views(const OccupancyMap& map, const Eigen::Vector3d& p_world,
+                const Eigen::Vector3d& n_world) {
   const OccupancyOptions& o = map.options();
   int views = 0;
   for (const auto& kf : map.keyframes()) {
@@ -51,8 +62,16 @@ int count_views(const OccupancyMap& map, const Eigen::Vector3d& p_world) {
     if (i < 0 || j < 0 || i >= kf.depth_mm.cols || j >= kf.depth_mm.rows) continue;
     const std::uint16_t mm = kf.depth_mm.at<std::uint16_t>(j, i);
     if (mm == 0 || kf.kind.at<std::uint8_t>(j, i) != KeyframeSamples::kStatic) continue;
-    const double tolerance = 0.5 * o.resolution + 3.0 * o.depth_sigma(p_c.z());
-    if (std::abs(1e-3 * mm - p_c.z()) <= tolerance) ++views;
+    // The depth at which the sample's own ray meets the tangent plane at p (the sample's pixel
+    // is up to half a step from p's projection).
+    const Eigen::Vector3d n_c = kf.T_w_c.rotation().transpose() * n_world;
+    const double along = n_c.dot(kf.ray(i, j));
+    if (std::abs(along) < 1e-6) continue;
+    const double z_surface = n_c.dot(p_c) / along;
+    // 3 sigma_z of depth noise and a quarter voxel of the keyframe's pose error (what the map
+    // tolerates before it rebuilds: OccupancyOptions::rebuild_tolerance).
+    const double tolerance = 3.0 * o.depth_sigma(z_surface) + o.rebuild_tolerance * o.resolution;
+    if (std::abs(1e-3 * mm - z_surface) <= tolerance) ++views;
   }
   return views;
 }
@@ -87,7 +106,7 @@ void measure_completeness(const OccupancyMap& map, const std::vector<StaticSurfa
             continue;
           const Eigen::Vector3d foot = s.closest_point(c);
           if (tree.coordToKey(foot.x(), foot.y(), foot.z()) != key) continue;
-          if (count_views(map, foot) < min_views) continue;
+          if (count_views(map, foot, s.normal_at(foot)) < min_views) continue;
           ++q.surface_seen;
           if (map.state(c) == VoxelState::kOccupied) ++q.surface_occupied;
           break;

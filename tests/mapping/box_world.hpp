@@ -93,12 +93,10 @@ struct BoxWorld {
 
   /// The room's six planes (normals pointing into the room) and the static boxes.
   std::vector<mapping::StaticSurface> static_surfaces() const {
-    std::vector<mapping::StaticSurface> s;
-    for (int a = 0; a < 3; ++a) {
-      const Eigen::Vector3d n = Eigen::Vector3d::Unit(a);
-      s.push_back(mapping::StaticSurface::plane(n, -room_min[a]));
-      s.push_back(mapping::StaticSurface::plane(-n, room_max[a]));
-    }
+    // The room: a box seen from inside.
+    std::vector<mapping::StaticSurface> s = {mapping::StaticSurface::box(
+        SE3(Eigen::Quaterniond::Identity(), 0.5 * (room_min + room_max)),
+        0.5 * (room_max - room_min))};
     for (const auto& b : boxes)
       if (!b.dynamic && !b.mover)
         s.push_back(mapping::StaticSurface::box(

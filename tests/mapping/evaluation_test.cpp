@@ -153,9 +153,14 @@ TEST(MapQuality, ViewsCountOnlyKeyframesThatSeeThePoint) {
   const PinholeCamera cam = test::make_camera();
   for (int i = 0; i < 3; ++i) map.insert(world.render(i, look({2.6, 2.5, 1.2}, 0.0), cam));
   const double wall = world.room_max.x();
-  EXPECT_EQ(count_views(map, {wall, 3.2, 1.0}), 3);   // in view
-  EXPECT_EQ(count_views(map, {wall, 2.5, 0.35}), 0);  // behind the chair
-  EXPECT_EQ(count_views(map, {0.0, 2.5, 1.0}), 0);    // behind the cameras
+  const Eigen::Vector3d nx = Eigen::Vector3d::UnitX();
+  EXPECT_EQ(count_views(map, {wall, 3.2, 1.0}, nx), 3);   // in view
+  EXPECT_EQ(count_views(map, {wall, 2.5, 0.35}, nx), 0);  // behind the chair
+  EXPECT_EQ(count_views(map, {0.0, 2.5, 1.0}, nx), 0);    // behind the cameras
+  // A surface 7 cm behind the wall, 3.4 m away: hidden (3 sigma_z is 5 cm there, a quarter
+  // voxel more for the pose), not seen.
+  EXPECT_EQ(count_views(map, {wall + 0.07, 3.2, 1.0}, nx), 0);
+  EXPECT_EQ(count_views(map, {wall + 0.05, 3.2, 1.0}, nx), 3);
 }
 
 }  // namespace

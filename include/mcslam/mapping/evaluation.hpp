@@ -13,7 +13,8 @@
 namespace mcslam::mapping {
 
 /// A static surface in the world frame: an infinite plane (normal . p + d = 0) or the boundary
-/// of a box (half_size along its axes, posed by T_world_box).
+/// of a box (half_size along its axes, posed by T_world_box; a room is the box seen from
+/// inside: its walls end at its corners).
 struct StaticSurface {
   enum class Kind { kPlane, kBox };
   Kind kind = Kind::kPlane;
@@ -26,6 +27,9 @@ struct StaticSurface {
   static StaticSurface box(const SE3& T_world_box, const Eigen::Vector3d& half_size);
   /// The point of the surface closest to p (on the box's boundary, also from inside it).
   Eigen::Vector3d closest_point(const Eigen::Vector3d& p) const;
+  /// The unit normal of the surface at its point `foot` (a box: of the face `foot` lies on; the
+  /// sign is not meant).
+  Eigen::Vector3d normal_at(const Eigen::Vector3d& foot) const;
 };
 
 struct MapQuality {
@@ -34,9 +38,7 @@ struct MapQuality {
   std::size_t ghosts = 0;
   double ghost_rate = 0.0;  ///< ghosts / occupied (0 for an empty map)
   /// Surface voxels (voxels holding the surface point closest to their centre) within the
-  /// map's bounds that at least min_views stored keyframes saw: the surface point projects into
-  /// the keyframe's samples within max_range, on a static sample whose depth agrees with it
-  /// within half a voxel plus 3 sigma_z (not hidden behind something nearer).
+  /// map's bounds that at least min_views stored keyframes saw (count_views()).
   std::size_t surface_seen = 0;
   std::size_t surface_occupied = 0;  ///< of those, the occupied ones
   double completeness = 0.0;         ///< surface_occupied / surface_seen (1 when none seen)
@@ -46,7 +48,12 @@ struct MapQuality {
 MapQuality evaluate_map(const OccupancyMap& map, const std::vector<StaticSurface>& surfaces,
                         int min_views = 3);
 
-/// The number of stored keyframes that saw the surface point p_world (as MapQuality says).
-int count_views(const OccupancyMap& map, const Eigen::Vector3d& p_world);
+/// The number of stored keyframes that saw the surface point p_world, where the surface's normal
+/// is n_world: p_world projects into the keyframe's samples within max_range, onto a static
+/// sample whose point lies on the surface's tangent plane at p_world within 3 sigma_z along its
+/// ray (a surface hidden a few centimetres behind a nearer one, as where two walls meet or a
+/// box stands on the floor, is not seen).
+int count_views(const OccupancyMap& map, const Eigen::Vector3d& p_world,
+                const Eigen::Vector3d& n_world);
 
 }  // namespace mcslam::mapping
