@@ -1,5 +1,7 @@
 #include "mapping/collector.hpp"
 
+#include <algorithm>
+#include <cmath>
 #include <utility>
 
 namespace mcslam::mapping::detail {
@@ -73,6 +75,7 @@ void Collector::add_sample(const octomap::OcTree& tree, const OccupancyOptions& 
     const std::uint8_t role = mover ? kMoverHit : spread ? kSpreadHit : kHit;
     const std::size_t entry = marks_.mark(k, role).entry;
     if (role == kSpreadHit) marks_.count_spread(entry);
+    if (role == kHit) marks_.count_hit(entry);
     if (bgr == nullptr || spread) return;
     if (entry >= colours_.size()) colours_.resize(marks_.entries().size());
     ColourSum& c = colours_[entry];
@@ -81,6 +84,37 @@ void Collector::add_sample(const octomap::OcTree& tree, const OccupancyOptions& 
     c.r += (*bgr)[2];
     ++c.n;
   });
+}
+
+/// Drops the hits of the voxels whose samples are the depth noise's tail behind the surface
+/// in the voxel in front of them (OccupancyOptions::tail_yield_ratio).
+void Collector::drop_noise_tails(const octomap::OcTree& tree, const OccupancyOptions& options,
+                                 const Eigen::Vector3d& origin) {
+  const double ratio = options.effective_tail_yield_ratio();
+  if (!(ratio > 0.0)) return;
+  const double res = tree.getResolution();
+  const std::size_t n = marks_.entries().size();
+  for (std::size_t e = 0; e < n; ++e) {
+    const KeyMarks::Entry& entry = marks_.entries()[e];
+    if ((entry.roles & kHit) == 0) continue;
+    const octomap::point3d c = tree.keyToCoord(entry.key);
+    const Eigen::Vector3d centre(c.x(), c.y(), c.z());
+    const Eigen::Vector3d ray = centre - origin;
+    const double distance = ray.norm();
+    // The tail reaches 3 sigma_z behind the surface: up to that many voxels in front.
+    const int reach =
+        std::max(1, static_cast<int>(std::ceil(3.0 * options.depth_sigma(distance) / res)));
+    const Eigen::Vector3d step = (res / distance) * ray;
+    std::uint32_t most = 0;  // the most samples in a voxel in front within reach
+    for (int k = 1; k <= reach; ++k) {
+      const Eigen::Vector3d p = centre - k * step;
+      octomap::OcTreeKey key;
+      if (!tree.coordToKeyChecked(p.x(), p.y(), p.z(), key) || key == entry.key) continue;
+      if (const auto front = marks_.find_entry(key))
+        most = std::max(most, marks_.entries()[*front].hits);
+    }
+    if (static_cast<double>(entry.hits) < ratio * most) marks_.drop_role(e, kHit | kSpreadHit);
+  }
 }
 
 void Collector::collect(const octomap::OcTree& tree, const OccupancyOptions& options,
@@ -93,6 +127,7 @@ void Collector::collect(const octomap::OcTree& tree, const OccupancyOptions& opt
   for (int j = 0; j < s.depth_mm.rows; ++j)
     for (int i = 0; i < s.depth_mm.cols; ++i) add_sample(tree, options, s, R, o, i, j);
   cast_rays(tree, o);
+  drop_noise_tails(tree, options, o);
 }
 
 }  // namespace mcslam::mapping::detail

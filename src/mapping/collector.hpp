@@ -50,6 +50,8 @@ class Collector {
                        const KeyframeSamples& s);
   void add_free(const octomap::OcTree& tree, const Eigen::Vector3d& to);
   void cast_rays(const octomap::OcTree& tree, const Eigen::Vector3d& origin);
+  void drop_noise_tails(const octomap::OcTree& tree, const OccupancyOptions& options,
+                        const Eigen::Vector3d& origin);
   void add_sample(const octomap::OcTree& tree, const OccupancyOptions& options,
                   const KeyframeSamples& s, const Eigen::Matrix3d& R, const Eigen::Vector3d& o,
                   int i, int j);

@@ -47,7 +47,7 @@ KeyMarks::Marked KeyMarks::mark_in_table(const octomap::OcTreeKey& key, std::uin
   if (slot.generation == generation_) return add_role(slot.entry, role);
   const std::size_t entry = entries_.size();
   slot = {packed, static_cast<std::uint32_t>(entry), generation_};
-  entries_.push_back({key, role, 0, 0, 0});
+  entries_.push_back({key, role, 0, 0, 0, 0});
   ++in_table_;
   if (2 * in_table_ > slots_.size()) grow();  // at most half full: short probes
   return {entry, true};
@@ -58,6 +58,17 @@ std::uint8_t KeyMarks::roles(const octomap::OcTreeKey& key) const {
   if (cell != kNoCell) return cells_[cell] != 0 ? entries_[cells_[cell] - 1].roles : 0;
   const Slot& slot = slots_[find(pack(key))];
   return slot.generation == generation_ ? entries_[slot.entry].roles : std::uint8_t{0};
+}
+
+std::optional<std::size_t> KeyMarks::find_entry(const octomap::OcTreeKey& key) const {
+  const std::size_t cell = window_cell(key);
+  if (cell != kNoCell) {
+    if (cells_[cell] == 0) return std::nullopt;
+    return cells_[cell] - 1;
+  }
+  const Slot& slot = slots_[find(pack(key))];
+  if (slot.generation != generation_) return std::nullopt;
+  return slot.entry;
 }
 
 void KeyMarks::grow() {

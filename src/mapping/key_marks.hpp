@@ -5,6 +5,7 @@
 // clang-format off
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <vector>
 #include <octomap/OcTreeKey.h>
 // clang-format on
@@ -29,6 +30,7 @@ class KeyMarks {
     std::uint32_t rays = 0;    ///< samples whose ray crossed it (add_rays)
     std::uint32_t spread = 0;  ///< samples whose hit spread reached it (count_spread)
     std::uint32_t ends = 0;    ///< samples whose free ray ends in it (count_end)
+    std::uint32_t hits = 0;    ///< static samples whose point lies in it (count_hit)
   };
 
   /// The most cells a window may have (16 MiB of them): a larger one is not used, and its keys
@@ -53,13 +55,18 @@ class KeyMarks {
     std::uint32_t& slot = cells_[cell];
     if (slot != 0) return add_role(slot - 1, role);
     slot = static_cast<std::uint32_t>(entries_.size() + 1);
-    entries_.push_back({key, role, 0, 0, 0});
+    entries_.push_back({key, role, 0, 0, 0, 0});
     return {entries_.size() - 1, true};
   }
   /// Adds to the counts of entry `entry` (an index of entries()).
   void add_rays(std::size_t entry, std::uint32_t n) { entries_[entry].rays += n; }
   void count_end(std::size_t entry) { ++entries_[entry].ends; }
   void count_spread(std::size_t entry) { ++entries_[entry].spread; }
+  void count_hit(std::size_t entry) { ++entries_[entry].hits; }
+  /// Takes `role` (one or more bits) from entry `entry`'s roles.
+  void drop_role(std::size_t entry, std::uint8_t role) { entries_[entry].roles &= ~role; }
+  /// The key's entry (an index of entries()), or none.
+  std::optional<std::size_t> find_entry(const octomap::OcTreeKey& key) const;
   /// The key's roles (0 when unmarked).
   std::uint8_t roles(const octomap::OcTreeKey& key) const;
   /// The marked keys, in the order they were first marked.

@@ -11,6 +11,15 @@ int OccupancyOptions::effective_pixel_step(const PinholeCamera& camera) const {
   return std::clamp(static_cast<int>(step), 1, 64);
 }
 
+double OccupancyOptions::effective_tail_yield_ratio() const {
+  if (tail_yield_ratio >= 0.0) return tail_yield_ratio;
+  const double sigma = depth_sigma(max_range);
+  if (!(sigma > 0.0)) return 0.0;  // exact depth: no tail
+  const auto tail = [](double x) { return 0.5 * std::erfc(x / std::sqrt(2.0)); };
+  const double a = resolution / (2.0 * sigma);
+  return (tail(a) - tail(3.0 * a)) / (1.0 - 2.0 * tail(a));
+}
+
 namespace {
 
 std::optional<std::string> check_geometry(const OccupancyOptions& o) {
@@ -29,6 +38,9 @@ std::optional<std::string> check_geometry(const OccupancyOptions& o) {
     return "mapping.free_margin_sigmas must be in [0, 10]";
   if (!(o.spread_yield_ratio >= 0.0) || o.spread_yield_ratio > 1000.0)
     return "mapping.spread_yield_ratio must be in [0, 1000]";
+  if (!std::isfinite(o.tail_yield_ratio) || o.tail_yield_ratio > 1000.0)
+    return "mapping.tail_yield_ratio must be finite and at most 1000 (negative: from the noise "
+           "model)";
   if (o.pixel_step < 0 || o.pixel_step > 64)
     return "mapping.pixel_step must be in [0, 64] (0: auto)";
   if (o.mask_dilation_px < 0 || o.mask_dilation_px > 50)

@@ -218,6 +218,7 @@ std::vector<Field> mcslam_fields(PinholeCamera& c, SystemOptions& o) {
       {"mapping.depth_noise_k", &o.occupancy.depth_noise_k},
       {"mapping.free_margin_sigmas", &o.occupancy.free_margin_sigmas},
       {"mapping.spread_yield_ratio", &o.occupancy.spread_yield_ratio},
+      {"mapping.tail_yield_ratio", &o.occupancy.tail_yield_ratio},
       {"mapping.prob_hit", &o.occupancy.prob_hit},
       {"mapping.prob_miss", &o.occupancy.prob_miss},
       {"mapping.prob_occupied", &o.occupancy.prob_occupied},

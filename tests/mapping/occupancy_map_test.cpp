@@ -493,5 +493,45 @@ TEST(OccupancyMap, RebuildWithHelperThreadsGivesTheMapOfOneThread) {
   }
 }
 
+/// One keyframe at the origin looking along +z at a wall face-on: a 64 x 48 image (5.5 voxels
+/// wide at 3.5 m), every pixel a sample at depth(u, v).
+template <typename Depth>
+KeyframeSamples wall_samples(Depth&& depth) {
+  KeyframeSamples s;
+  s.camera = test::make_camera(525.0, 525.0, 31.5, 23.5);
+  s.camera.width = 64;
+  s.camera.height = 48;
+  s.depth_mm = cv::Mat(48, 64, CV_16UC1);
+  for (int v = 0; v < 48; ++v)
+    for (int u = 0; u < 64; ++u) s.depth_mm.at<std::uint16_t>(v, u) = depth(u, v);
+  s.kind = cv::Mat::zeros(48, 64, CV_8UC1);
+  return s;
+}
+
+TEST(OccupancyMap, ANoiseTailBehindASurfaceIsNotAnObstacle) {
+  // The wall at the centre of the voxels from 3.50 to 3.55 m; one pixel in 64 measures it
+  // 5 cm too far, in the voxel behind (its centre a voxel behind the wall), where no ray
+  // passes to free it.
+  const auto tail = [](int u, int v) -> std::uint16_t {
+    return u % 8 == 0 && v % 8 == 0 ? 3575 : 3525;
+  };
+  const Eigen::Vector3d wall(0.0, 0.0, 3.525), behind(0.0, 0.0, 3.575);
+  OccupancyMap yielding;
+  yielding.insert(wall_samples(tail));
+  EXPECT_EQ(yielding.state(wall), VoxelState::kOccupied);
+  EXPECT_EQ(yielding.state(behind), VoxelState::kUnknown);
+  OccupancyOptions off;
+  off.tail_yield_ratio = 0.0;
+  OccupancyMap kept(off);
+  kept.insert(wall_samples(tail));
+  EXPECT_EQ(kept.state(behind), VoxelState::kOccupied);
+  // A wall on the boundary of two voxels puts about as many samples in each: both hold it.
+  OccupancyMap boundary;
+  boundary.insert(
+      wall_samples([](int u, int v) -> std::uint16_t { return (u + v) % 2 == 0 ? 3545 : 3555; }));
+  EXPECT_EQ(boundary.state({0.0, 0.0, 3.525}), VoxelState::kOccupied);
+  EXPECT_EQ(boundary.state({0.0, 0.0, 3.575}), VoxelState::kOccupied);
+}
+
 }  // namespace
 }  // namespace mcslam::mapping

@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <functional>
+#include <random>
 
 #include "mcslam/core/error.hpp"
 #include "mcslam/mapping/occupancy_map.hpp"
@@ -60,6 +61,9 @@ TEST(OccupancyOptions, RangeBandAndProbabilityErrors) {
                "mapping.spread_yield_ratio");
   expect_error([](OccupancyOptions& o) { o.spread_yield_ratio = std::nan(""); },
                "mapping.spread_yield_ratio");
+  expect_error([](OccupancyOptions& o) { o.tail_yield_ratio = std::nan(""); },
+               "mapping.tail_yield_ratio");
+  expect_error([](OccupancyOptions& o) { o.tail_yield_ratio = 1e6; }, "mapping.tail_yield_ratio");
   expect_error([](OccupancyOptions& o) { o.prob_hit = 0.4; }, "mapping.prob_hit");
   expect_error([](OccupancyOptions& o) { o.prob_miss = 0.6; }, "mapping.prob_miss");
   expect_error([](OccupancyOptions& o) { o.clamp_max = 0.4; }, "mapping.clamp_max");
@@ -99,6 +103,31 @@ TEST(OccupancyOptions, AutoPixelStepKeepsSamplesHalfAVoxelApartAtMaxRange) {
   EXPECT_EQ(o.effective_pixel_step(vga), 6);
   o.pixel_step = 2;
   EXPECT_EQ(o.effective_pixel_step(vga), 2);
+}
+
+TEST(OccupancyOptions, AutoTailRatioIsWhatAVoxelBehindTheSurfaceGetsAtMaxRange) {
+  OccupancyOptions o;
+  // sigma_z(4 m) = 2.28 cm, a = 5 / (2 * 2.28) = 1.096: (Q(a) - Q(3a)) / (1 - 2 Q(a)).
+  EXPECT_NEAR(o.effective_tail_yield_ratio(), 0.187, 0.001);
+  // The same, sampled: points N(0, sigma) around a surface at the centre of its voxel; the
+  // voxel behind it (centre one voxel behind the surface) holds those from half a voxel to one
+  // and a half behind.
+  std::mt19937 rng(7);
+  const double sigma = o.depth_sigma(o.max_range), r = o.resolution;
+  std::normal_distribution<double> noise(0.0, sigma);
+  int front = 0, behind = 0;
+  for (int i = 0; i < 200000; ++i) {
+    const double e = noise(rng);  // behind the surface
+    if (std::abs(e) < 0.5 * r) ++front;
+    if (e >= 0.5 * r && e < 1.5 * r) ++behind;
+  }
+  EXPECT_NEAR(static_cast<double>(behind) / front, o.effective_tail_yield_ratio(), 0.01);
+  o.max_range = 2.0;  // less noise: a smaller tail
+  EXPECT_LT(o.effective_tail_yield_ratio(), 0.01);
+  o.depth_noise_k = 0.0;  // exact depth: no tail, the rule is off
+  EXPECT_EQ(o.effective_tail_yield_ratio(), 0.0);
+  o.tail_yield_ratio = 0.3;
+  EXPECT_EQ(o.effective_tail_yield_ratio(), 0.3);
 }
 
 }  // namespace
