@@ -46,8 +46,9 @@ void Collector::cast_rays(const octomap::OcTree& tree, const Eigen::Vector3d& or
   for (std::size_t e = 0; e < noted; ++e) {
     const KeyMarks::Entry end = marks_.entries()[e];  // a copy: marking may grow them
     if ((end.roles & kRayEnd) == 0) continue;
-    if (!tree.computeRayKeys(from, tree.keyToCoord(end.key), ray_)) continue;
-    for (const auto& key : ray_) marks_.add_rays(marks_.mark(key, kCrossed).entry, end.ends);
+    walk_ray(tree, from, tree.keyToCoord(end.key), [&](const octomap::OcTreeKey& key) {
+      marks_.add_rays(marks_.mark(key, kCrossed).entry, end.ends);
+    });
   }
 }
 

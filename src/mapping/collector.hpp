@@ -10,6 +10,7 @@
 
 #include "mapping/key_marks.hpp"
 #include "mapping/octree_walk.hpp"
+#include "mapping/ray_walk.hpp"
 #include "mcslam/mapping/occupancy_map.hpp"
 
 namespace mcslam::mapping::detail {
@@ -58,7 +59,6 @@ class Collector {
 
   KeyMarks marks_;
   std::vector<ColourSum> colours_;
-  octomap::KeyRay ray_;
 };
 
 template <typename Hit>
@@ -77,14 +77,13 @@ void Collector::add_hit(const octomap::OcTree& tree, const Eigen::Vector3d& o,
   if (sigma < 0.05 * tree.getResolution()) return;
   const Eigen::Vector3d near = o + (z - sigma) * dir_z;
   // Both ends in one voxel (sigma is below half a voxel up to a few metres): no voxel between
-  // them. The ends' keys as computeRayKeys finds them (from single-precision points).
+  // them. The ends' keys as walk_ray finds them (from single-precision points).
   const octomap::point3d near_f = to_point(near), p_f = to_point(p);
   octomap::OcTreeKey near_key, p_key;
   if (tree.coordToKeyChecked(near_f, near_key) && tree.coordToKeyChecked(p_f, p_key) &&
       near_key == p_key)
     return;
-  if (tree.computeRayKeys(near_f, p_f, ray_))
-    for (const auto& k : ray_) hit(k, true);
+  walk_ray(tree, near_f, p_f, [&](const octomap::OcTreeKey& k) { hit(k, true); });
 }
 
 }  // namespace mcslam::mapping::detail

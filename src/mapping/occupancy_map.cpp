@@ -262,13 +262,13 @@ void OccupancyMap::Impl::apply(const detail::Collector& collected) {
     const bool spread_holds = (e.roles & kSpreadHit) != 0 && !(static_cast<double>(e.spread) <
                                                                yield * static_cast<double>(e.rays));
     if ((e.roles & kHit) != 0 || spread_holds) {
-      volatile_keys.erase(key);
+      if (!volatile_keys.empty()) volatile_keys.erase(key);  // (hashing costs, even when empty)
       update(key, hit_log);
     } else if ((e.roles & kMoverHit) != 0) {
       volatile_keys.insert(key);
       set_at_least_past(key, hit_log);
     } else if ((e.roles & kCrossed) != 0) {
-      if (volatile_keys.erase(key) != 0)
+      if (!volatile_keys.empty() && volatile_keys.erase(key) != 0)
         set_at_least_past(key, miss_log);  // where a mover was: free now
       else
         update(key, miss_log);

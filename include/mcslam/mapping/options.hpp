@@ -59,8 +59,9 @@ struct OccupancyOptions {
   /// A static sample's hit is the tail of the depth noise when its voxel lies behind the
   /// surface: behind a surface no ray of any keyframe passes to free it, so one such hit would
   /// stay. A keyframe's hits in a voxel (direct and spread) are dropped when its samples whose
-  /// point lies there number fewer than this ratio times those in the voxel in front of it
-  /// (one voxel towards the camera along the ray). Negative (the default): the ratio a voxel
+  /// point lies there number fewer than this ratio times the most in one voxel in front of it
+  /// along the ray, up to 3 sigma_z nearer (the tail's reach: one voxel up to 2.9 m, two
+  /// beyond). Negative (the default): the ratio a voxel
   /// whose centre lies one voxel behind the surface gets, seen face-on at max_range with
   /// Gaussian depth error sigma_z (depth_noise_k): Q(a) - Q(3a) of the samples against
   /// 1 - 2 Q(a) in the voxel holding the surface, a = resolution / (2 sigma_z), Q the normal
