@@ -853,6 +853,15 @@ void prepare_map_and_boxes(const RunRequest& request, PreparedRun& run) {
   if (request.no_dynamics) config.options.tracker.dynamics.enabled = false;
   if (request.no_constraints) config.options.tracker.dynamics.constraints = false;
   if (request.no_occupancy) config.options.occupancy_enabled = false;
+  // A recorded sequence without a viewer or a frame callback (the ROS node's) reads its map
+  // only at the end, and the final bundle adjustment rebuilds it from the keyframes anyway:
+  // they are integrated once, at the end. A run that localises integrates its views as they
+  // come (they are not stored).
+  std::string& integration = config.options.occupancy.integration;
+  if (integration == "auto") {
+    const bool watched = request.viewer || request.on_frame || request.live;
+    integration = watched || config.options.localize ? "live" : "at_end";
+  }
   if (request.load_session) run.initial = load_compatible_session(*request.load_session, config);
   run.detection_source = make_detection_source(request, config.camera, config.options);
   if (!run.detection_source)

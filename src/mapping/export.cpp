@@ -150,6 +150,7 @@ nlohmann::json occupancy_summary(const OccupancyStats& stats, const OccupancyGri
       // Keyframes and views integrated (a loaded session's, and in localisation the views that
       // are not stored): at least `keyframes`.
       {"integrated", stats.integration_ms.count},
+      {"integration", stats.integration},
       {"time_per_keyframe_ms",
        {{"median", stats.integration_ms.median},
         {"p95", stats.integration_ms.p95},

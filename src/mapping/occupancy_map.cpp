@@ -140,8 +140,14 @@ struct OccupancyMap::Impl {
   /// What one integration's samples did to each voxel (the scratch space is kept).
   detail::Collector collector;
   octomap::KeySet volatile_keys;  ///< voxels a mover marked last (across keyframes)
+  /// OccupancyOptions::integration "at_end": keyframes are stored, integrated later.
+  bool deferred = false;
+  bool pending = false;  ///< stored keyframes not in the octree yet (deferred)
 
-  explicit Impl(const OccupancyOptions& o) : options(o), tree(o.resolution) { configure(); }
+  explicit Impl(const OccupancyOptions& o)
+      : options(o), tree(o.resolution), deferred(o.integration == "at_end") {
+    configure();
+  }
   /// A deep copy: the octree's nodes are copied, the keyframes' sample images shared (they
   /// are never written once stored).
   Impl(const Impl& other) = default;
@@ -224,6 +230,11 @@ struct OccupancyMap::Impl {
   void settle();
   void reintegrate_all();
   void reintegrate_with_helpers(std::size_t helpers);
+  bool integrate_pending_keyframes() {
+    if (!pending) return false;
+    reintegrate_all();
+    return true;
+  }
 };
 
 void OccupancyMap::Impl::integrate(const KeyframeSamples& s) {
@@ -299,6 +310,7 @@ void OccupancyMap::Impl::reintegrate_all() {
   reintegrate_with_helpers(std::min(helpers, keyframes.empty() ? 0 : keyframes.size() - 1));
   ++rebuilds;
   last_rebuild_ms = watch.elapsed_ms();
+  pending = false;
 }
 
 /// The keyframes' marks are gathered by this thread and `helpers` others (none: this thread
@@ -357,6 +369,7 @@ std::optional<std::string> KeyframeSamples::check() const {
 
 void OccupancyMap::integrate_transient(const KeyframeDepth& view) {
   Stopwatch watch;
+  impl_->integrate_pending_keyframes();  // under the view, not over it
   impl_->integrate(sample_keyframe(view, impl_->options));
   impl_->insert_ms.push_back(watch.elapsed_ms());
 }
@@ -369,11 +382,11 @@ void OccupancyMap::insert(KeyframeSamples samples) {
   const auto found = m.index.find(samples.id);
   if (found != m.index.end()) {
     m.keyframes[found->second] = std::move(samples);
-    m.reintegrate_all();
+    m.deferred ? void(m.pending = true) : m.reintegrate_all();
   } else {
     m.index.emplace(samples.id, m.keyframes.size());
     m.keyframes.push_back(std::move(samples));
-    m.integrate(m.keyframes.back());
+    m.deferred ? void(m.pending = true) : m.integrate(m.keyframes.back());
   }
   m.insert_ms.push_back(watch.elapsed_ms());
 }
@@ -416,11 +429,15 @@ bool OccupancyMap::correct(const std::unordered_map<KeyframeId, SE3>& T_w_c, boo
     if (moved(kf.T_w_c, pose, tolerance, m.options.max_range)) any = true;
     kf.T_w_c = pose;
   }
-  if (any) m.reintegrate_all();
+  if (any) m.deferred ? void(m.pending = true) : m.reintegrate_all();
   return any;
 }
 
 void OccupancyMap::rebuild() { impl_->reintegrate_all(); }
+
+bool OccupancyMap::pending() const { return impl_->pending; }
+
+bool OccupancyMap::integrate_pending() { return impl_->integrate_pending_keyframes(); }
 
 void OccupancyMap::settle() { impl_->settle(); }
 
@@ -466,6 +483,7 @@ OccupancyStats OccupancyMap::stats() const {
     (m.tree.isNodeOccupied(*it) ? s.occupied_voxels : s.free_voxels) += n;
   }
   s.integration_ms = compute_stats(m.insert_ms);
+  s.integration = m.deferred ? "at_end" : "live";
   s.rebuilds = m.rebuilds;
   s.last_rebuild_ms = m.last_rebuild_ms;
   s.octree_bytes = m.tree.memoryUsage();

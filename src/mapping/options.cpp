@@ -48,6 +48,8 @@ std::optional<std::string> check_geometry(const OccupancyOptions& o) {
   if (o.niceness < 0 || o.niceness > 19) return "mapping.niceness must be in [0, 19]";
   if (o.rebuild_threads < 1 || o.rebuild_threads > 16)
     return "mapping.rebuild_threads must be in [1, 16]";
+  if (o.integration != "auto" && o.integration != "live" && o.integration != "at_end")
+    return "mapping.integration must be auto, live or at_end, not \"" + o.integration + "\"";
   if (!(o.localize_view_period >= 0.0 && o.localize_view_period <= 3600.0))
     return "mapping.localize_view_period must be in [0, 3600] (seconds)";
   return std::nullopt;

@@ -131,6 +131,15 @@ std::size_t MappingWorker::pending() const { return pending_.load(); }
 void MappingWorker::settle() {
   if (!worker_ || failure_->failed()) return;
   post_guarded([this] {
+    if (map_.pending()) {  // integration "at_end": off the lock, as correct() rebuilds
+      OccupancyMap integrated = map_.clone();
+      integrated.integrate_pending();
+      integrated.settle();
+      const std::lock_guard<std::mutex> lock(map_mutex_);
+      map_ = std::move(integrated);
+      ++version_;
+      return;
+    }
     // The same voxels in fewer nodes: no new version, but the next snapshot is built anew (its
     // node count and memory changed).
     const std::lock_guard<std::mutex> lock(map_mutex_);

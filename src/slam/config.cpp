@@ -232,6 +232,7 @@ std::vector<Field> mcslam_fields(PinholeCamera& c, SystemOptions& o) {
       {"mapping.band_max", &o.occupancy.band_max},
       {"mapping.rebuild_tolerance", &o.occupancy.rebuild_tolerance},
       {"mapping.rebuild_threads", &o.occupancy.rebuild_threads},
+      {"mapping.integration", &o.occupancy.integration},
       {"mapping.localize_view_period", &o.occupancy.localize_view_period},
       {"mapping.niceness", &o.occupancy.niceness},
       {"system.sequential", &o.sequential},

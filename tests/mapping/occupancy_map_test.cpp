@@ -493,6 +493,50 @@ TEST(OccupancyMap, RebuildWithHelperThreadsGivesTheMapOfOneThread) {
   }
 }
 
+TEST(OccupancyMap, IntegrationAtTheEndGivesTheMapOfTheRebuildAfterACorrection) {
+  // "at_end" stores keyframes and corrections and integrates them once: the map a live one has
+  // after a correction rebuilt it, node for node and colour for colour.
+  BoxWorld world;
+  world.boxes.push_back({{4.0, 2.3, 0.012}, {4.45, 2.75, 0.9}, false, {30, 120, 30}});
+  world.boxes.push_back({{3.6, 1.6, 0.012}, {3.9, 1.9, 1.7}, true});
+  const PinholeCamera cam = test::make_camera();
+  const auto poses = wall_path(4);
+  OccupancyOptions at_end;
+  at_end.integration = "at_end";
+  OccupancyMap live, deferred(at_end);
+  for (std::size_t k = 0; k < poses.size(); ++k) {
+    const KeyframeDepth view = world.render(k, poses[k], cam);
+    live.insert(view);
+    deferred.insert(view);
+  }
+  EXPECT_TRUE(deferred.pending());
+  EXPECT_EQ(deferred.octree().size(), 0u);  // nothing integrated yet
+  // The final bundle adjustment moves every keyframe by 3 cm.
+  std::unordered_map<KeyframeId, SE3> moved;
+  for (const auto& kf : live.keyframes())
+    moved[kf.id] = SE3(kf.T_w_c.quaternion(), kf.T_w_c.translation() + Eigen::Vector3d(0.03, 0, 0));
+  EXPECT_TRUE(live.correct(moved));
+  EXPECT_TRUE(deferred.correct(moved));
+  EXPECT_EQ(deferred.stats().rebuilds, 0u);
+  EXPECT_EQ(deferred.stats().integration, "at_end");
+  EXPECT_TRUE(deferred.integrate_pending());
+  EXPECT_FALSE(deferred.pending());
+  EXPECT_FALSE(deferred.integrate_pending());
+  live.settle();
+  deferred.settle();
+  std::ostringstream a, b;
+  live.octree().writeBinaryData(a);
+  deferred.octree().writeBinaryData(b);
+  EXPECT_EQ(a.str(), b.str());
+  const auto colours = [](const OccupancyMap& m) {
+    std::vector<std::array<int, 3>> c;
+    for (const auto& v : m.occupied_voxels()) c.push_back({v.rgb[0], v.rgb[1], v.rgb[2]});
+    return c;
+  };
+  EXPECT_EQ(colours(deferred), colours(live));
+  EXPECT_GT(live.stats().occupied_voxels, 100u);
+}
+
 /// One keyframe at the origin looking along +z at a wall face-on: a 64 x 48 image (5.5 voxels
 /// wide at 3.5 m), every pixel a sample at depth(u, v).
 template <typename Depth>

@@ -64,6 +64,7 @@ TEST(OccupancyOptions, RangeBandAndProbabilityErrors) {
   expect_error([](OccupancyOptions& o) { o.tail_yield_ratio = std::nan(""); },
                "mapping.tail_yield_ratio");
   expect_error([](OccupancyOptions& o) { o.tail_yield_ratio = 1e6; }, "mapping.tail_yield_ratio");
+  expect_error([](OccupancyOptions& o) { o.integration = "lazy"; }, "mapping.integration");
   expect_error([](OccupancyOptions& o) { o.prob_hit = 0.4; }, "mapping.prob_hit");
   expect_error([](OccupancyOptions& o) { o.prob_miss = 0.6; }, "mapping.prob_miss");
   expect_error([](OccupancyOptions& o) { o.clamp_max = 0.4; }, "mapping.clamp_max");

@@ -62,6 +62,31 @@ TEST(MappingWorker, IntegratesQueuedKeyframesLikeTheMapItself) {
               enqueue.median, enqueue.max);
 }
 
+TEST(MappingWorker, IntegratesAtTheEndWhenWaitedFor) {
+  // integration "at_end": the keyframes are stored as they come and integrated by wait().
+  BoxWorld world;
+  const PinholeCamera cam = test::make_camera();
+  const auto poses = path(4);
+  OccupancyMap inline_map;
+  OccupancyOptions at_end;
+  at_end.integration = "at_end";
+  MappingWorker worker(at_end);
+  for (std::size_t i = 0; i < poses.size(); ++i) {
+    const auto kf = world.render(i, poses[i], cam);
+    inline_map.insert(kf);
+    worker.enqueue(kf);
+  }
+  while (worker.pending() > 0) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  EXPECT_EQ(worker.snapshot()->stats.occupied_voxels, 0u);  // stored, not integrated
+  EXPECT_EQ(worker.snapshot()->stats.keyframes, 4u);
+  worker.wait();
+  const auto snapshot = worker.snapshot();
+  EXPECT_EQ(snapshot->stats.rebuilds, 1u);
+  EXPECT_EQ(snapshot->stats.occupied_voxels, inline_map.stats().occupied_voxels);
+  EXPECT_EQ(snapshot->voxels.size(), inline_map.occupied_voxels().size());
+  EXPECT_EQ(snapshot->grid.cells, inline_map.grid().cells);
+}
+
 TEST(MappingWorker, CorrectionsApplyInOrderAfterTheKeyframesBeforeThem) {
   BoxWorld world;
   const PinholeCamera cam = test::make_camera();

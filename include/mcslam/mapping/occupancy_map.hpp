@@ -166,8 +166,11 @@ struct OccupancyStats {
   std::size_t occupied_voxels = 0;
   std::size_t free_voxels = 0;
   std::size_t leaf_nodes = 0;
-  /// Time of insert() per keyframe (sampling and integration), milliseconds.
+  /// Time of insert() per keyframe (sampling and integration; with integration "at_end",
+  /// sampling and storing: the integration is the rebuild), milliseconds.
   SampleStats integration_ms;
+  /// "live" or "at_end" (OccupancyOptions::integration).
+  std::string integration = "live";
   std::size_t rebuilds = 0;
   double last_rebuild_ms = 0.0;
   /// Memory: the octree (OcTree::memoryUsage()), the stored keyframe samples, the colour sums.
@@ -220,6 +223,11 @@ class OccupancyMap {
   bool correct(const std::unordered_map<KeyframeId, SE3>& T_w_c, bool listed_only = false);
   /// Clears the octree and integrates every stored keyframe again.
   void rebuild();
+  /// With OccupancyOptions::integration "at_end", insert() and correct() only store keyframes
+  /// and poses: whether some are not in the octree yet (until integrate_pending()).
+  bool pending() const;
+  /// Integrates the stored keyframes when pending() (a rebuild); returns whether it did.
+  bool integrate_pending();
   /// Updates the octree's inner nodes and merges the children that agree into their parent.
   /// Integrating (insert(), correct(), ...) does so only when the tree has doubled since the
   /// last time (it walks the whole tree): the voxels' states are the same either way, but call

@@ -142,6 +142,16 @@ struct OccupancyOptions {
   /// done and every core is free; on Bonn crowd part1 it is the largest single cost of the map
   /// (1.0-1.5 s for 60-115 keyframes, one thread). At most 16.
   int rebuild_threads = 2;
+  /// When keyframes are integrated into the octree. "live": each as it comes, so that the map
+  /// can be read during the run (the viewer, the ROS node, Python). "at_end": each is sampled
+  /// and stored as it comes, and they are all integrated together when the map is next
+  /// settled (MappingWorker::wait() and finish(), OccupancyMap::integrate_pending()), with
+  /// their poses then: the same final map as "live" wherever the final bundle adjustment moved
+  /// a keyframe by more than rebuild_tolerance (which rebuilds the map from them: on every
+  /// Bonn crowd part1 run), without the integrations that rebuild throws away (57-62 keyframes
+  /// at ~34 ms each on 2 cores). "auto" is "live" here; `mcslam run` makes it "at_end" when
+  /// neither a viewer watches nor the run localises (nothing reads its map before the end).
+  std::string integration = "auto";
 
   /// The sampling step used for a camera: pixel_step, or with 0 (auto) the rule above.
   int effective_pixel_step(const PinholeCamera& camera) const;

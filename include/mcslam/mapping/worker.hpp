@@ -95,7 +95,7 @@ class MappingWorker {
  private:
   /// Queues body on the thread; its exception is kept in failure_, and after one nothing runs.
   void post_guarded(std::function<void()> body);
-  /// Queues OccupancyMap::settle().
+  /// Queues OccupancyMap::integrate_pending() and settle().
   void settle();
   /// A job on the map under its lock.
   void run(const std::function<void(OccupancyMap&)>& job);
