@@ -115,8 +115,8 @@ if [ "$bonn" = 1 ] && [ -d "$data" ] && [ -f "$model" ]; then
   echo
   echo "Bonn crowd part1 (threaded, yolov8n_320): FULL's occupied cells where REF saw free"
   echo
-  echo "| run | with the masks | --no-dynamics | fps (FULL) | mapping ms per keyframe (median, p95) |"
-  echo "|---|---|---|---|---|"
+  echo "| run | with the masks | --no-dynamics | fps (FULL) | mapping ms per keyframe (median, p95) | integration, the final one or rebuild (ms) |"
+  echo "|---|---|---|---|---|---|"
   for r in $(seq 1 "$runs"); do
     m=$("$exe" grid-compare "$out/bonn/ref-$r" "$out/bonn/full-$r" --json)
     n=$("$exe" grid-compare "$out/bonn/ref-$r" "$out/bonn/full_nodyn-$r" --json)
@@ -124,10 +124,12 @@ if [ "$bonn" = 1 ] && [ -d "$data" ] && [ -f "$model" ]; then
 import json, sys
 r, m, n, path = sys.argv[1], json.loads(sys.argv[2]), json.loads(sys.argv[3]), sys.argv[4]
 s = json.load(open(path))
-t = s["occupancy"]["time_per_keyframe_ms"]
+o = s["occupancy"]
+t = o["time_per_keyframe_ms"]
 def fig(j):
     return f"{100 * j['appeared_rate']:.2f} % ({j['appeared']} of {j['full_occupied_seen_by_ref']})"
-print(f"| {r} | {fig(m)} | {fig(n)} | {s['frames_per_second']:.1f} | {t['median']:.0f}, {t['p95']:.0f} |")
+print(f"| {r} | {fig(m)} | {fig(n)} | {s['frames_per_second']:.1f} | {t['median']:.0f}, {t['p95']:.0f} | "
+      f"{o.get('integration', 'live')}, {o['last_rebuild_ms']:.0f} |")
 EOF
   done
 fi

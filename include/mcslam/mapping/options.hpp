@@ -56,25 +56,25 @@ struct OccupancyOptions {
   /// 97.5, 0.38 / 97.3, 0.24 / 97.2, 0.21 / 97.0. With noise one draw per 3 x 3 pixels (none
   /// averaged away) 2.5-4 m from a wall: ghosts 21.1 -> 1.9 % (evaluation_test.cpp).
   double spread_yield_ratio = 0.5;
-  /// A static sample's hit is the tail of the depth noise when its voxel lies behind the
-  /// surface: behind a surface no ray of any keyframe passes to free it, so one such hit would
-  /// stay. A keyframe's hits in a voxel (direct and spread) are dropped when its samples whose
-  /// point lies there number fewer than this ratio times the most in one voxel in front of it
-  /// along the ray, up to 3 sigma_z nearer (the tail's reach: one voxel up to 2.9 m, two
-  /// beyond). Negative (the default): the ratio a voxel
-  /// whose centre lies one voxel behind the surface gets, seen face-on at max_range with
-  /// Gaussian depth error sigma_z (depth_noise_k): Q(a) - Q(3a) of the samples against
-  /// 1 - 2 Q(a) in the voxel holding the surface, a = resolution / (2 sigma_z), Q the normal
-  /// tail: 0.187 at 5 cm and 4 m (effective_tail_yield_ratio()). Nearer, sigma_z is smaller and
-  /// such a voxel gets fewer; a voxel that holds the surface gets about as many as the one in
-  /// front of it or more. 0: off. Synthetic rooms (scripts/bench_mapping.sh), ghost rate /
-  /// completeness off -> auto: a person walking 0.05 / 99.0 -> 0.05 / 98.9 %, four people 0.37
-  /// / 96.4 -> 0.23 / 95.5, one person without a box 1.14 / 95.8 -> 0.91 / 95.3, the pushed
-  /// chair 0.24 / 99.0 -> 0.22 / 98.7. The surface voxels it empties (41 in the room with the
-  /// unboxed person) hold the true surface within 3 mm of their front face, where the run's
-  /// samples lie 0.8-1.9 cm nearer (the poses' error): the voxel in front keeps the surface.
-  /// Comparing with the voxel behind as well (the tail in front of a surface, which rays cross)
-  /// left the ghosts where they were and took completeness to 94.9 and 94.7 %.
+  /// A static sample's hit is the tail of the depth noise when its voxel lies behind the surface:
+  /// behind a surface no ray of any keyframe passes to free it, so one such hit would stay. A
+  /// keyframe's hits in a voxel (direct and spread) are dropped when its samples whose point lies
+  /// there number fewer than this ratio times the most in one voxel in front of it along the ray,
+  /// up to 3 sigma_z nearer (the tail's reach: one voxel up to 2.9 m, two beyond). Negative (the
+  /// default): the ratio a voxel whose centre lies one voxel behind the surface gets, seen face-on
+  /// at max_range with Gaussian depth error sigma_z (depth_noise_k): Q(a) - Q(3a) of the samples
+  /// against 1 - 2 Q(a) in the voxel holding the surface, a = resolution / (2 sigma_z), Q the
+  /// normal tail: 0.187 at 5 cm and 4 m (effective_tail_yield_ratio()). Nearer, sigma_z is smaller
+  /// and such a voxel gets fewer; a voxel that holds the surface gets about as many as the one in
+  /// front of it or more. 0: off. Synthetic rooms (scripts/bench_mapping.sh, each keyframe
+  /// integrated as it came), ghost rate / completeness off -> auto: a person walking 0.05 / 99.0 ->
+  /// 0.05 / 98.9 %, four people 0.37 / 96.4 -> 0.23 / 95.5, one person without a box 1.14 / 95.8 ->
+  /// 0.91 / 95.3, the pushed chair 0.24 / 99.0 -> 0.22 / 98.7. The surface voxels it empties (41 in
+  /// the room with the unboxed person) hold the true surface within 3 mm of their front face, where
+  /// the run's samples lie 0.8-1.9 cm nearer (the poses' error): the voxel in front keeps the
+  /// surface. Comparing with the voxel behind as well (the tail in front of a surface, which rays
+  /// cross) left the ghosts nearly where they were (0.21 and 0.90 %) and took completeness to 94.9
+  /// and 94.7 %.
   double tail_yield_ratio = -1.0;
   /// Occupancy probabilities (OctoMap's and octomap_server's defaults): a hit adds
   /// logodds(prob_hit) = +0.85, a miss logodds(prob_miss) = -0.41, each once per keyframe and
