@@ -50,9 +50,10 @@ MapQuality evaluate_map(const OccupancyMap& map, const std::vector<StaticSurface
 
 /// The number of stored keyframes that saw the surface point p_world, where the surface's normal
 /// is n_world: p_world projects into the keyframe's samples within max_range, onto a static
-/// sample whose point lies on the surface's tangent plane at p_world within 3 sigma_z along its
-/// ray (a surface hidden a few centimetres behind a nearer one, as where two walls meet or a
-/// box stands on the floor, is not seen).
+/// sample whose point lies on the surface's tangent plane at p_world, along the sample's ray,
+/// within 3 sigma_z and rebuild_tolerance of a voxel (the keyframe's pose error the map bears):
+/// a surface hidden a few centimetres behind a nearer one, as where two walls meet or a box
+/// stands on the floor, is not seen.
 int count_views(const OccupancyMap& map, const Eigen::Vector3d& p_world,
                 const Eigen::Vector3d& n_world);
 
