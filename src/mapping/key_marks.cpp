@@ -54,10 +54,8 @@ KeyMarks::Marked KeyMarks::mark_in_table(const octomap::OcTreeKey& key, std::uin
 }
 
 std::uint8_t KeyMarks::roles(const octomap::OcTreeKey& key) const {
-  const std::size_t cell = window_cell(key);
-  if (cell != kNoCell) return cells_[cell] != 0 ? entries_[cells_[cell] - 1].roles : 0;
-  const Slot& slot = slots_[find(pack(key))];
-  return slot.generation == generation_ ? entries_[slot.entry].roles : std::uint8_t{0};
+  const auto entry = find_entry(key);
+  return entry ? entries_[*entry].roles : std::uint8_t{0};
 }
 
 std::optional<std::size_t> KeyMarks::find_entry(const octomap::OcTreeKey& key) const {
