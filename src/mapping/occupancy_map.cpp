@@ -318,10 +318,14 @@ void OccupancyMap::Impl::reintegrate_all() {
 /// octree in the keyframes' order by this thread: the same map as integrate() one after the
 /// other.
 void OccupancyMap::Impl::reintegrate_with_helpers(std::size_t helpers) {
-  std::vector<detail::Collector> ring(helpers + 1);
+  // Two collectors a thread: a helper gathers the next keyframes while this thread applies one
+  // (applying takes about as long as gathering: with one a thread, this thread gathered half the
+  // keyframes and applied all of them while the helper waited for a free collector).
+  const std::size_t slots = detail::pipeline_slots(helpers, helpers > 0 ? 2 * (helpers + 1) : 1);
+  std::vector<detail::Collector> ring(slots);
   std::swap(ring[0], collector);  // its scratch space has grown already (a fresh one is valid too)
   detail::gather_and_apply_in_order(
-      keyframes.size(), helpers,
+      keyframes.size(), helpers, slots,
       [&](std::size_t k, std::size_t slot) { ring[slot].collect(tree, options, keyframes[k]); },
       [&](std::size_t, std::size_t slot) { apply(ring[slot]); });
   std::swap(ring[0], collector);

@@ -100,10 +100,11 @@ class Pipeline {
 
 }  // namespace
 
-void gather_and_apply_in_order(std::size_t n, std::size_t helpers,
+void gather_and_apply_in_order(std::size_t n, std::size_t helpers, std::size_t slots,
                                const std::function<void(std::size_t, std::size_t)>& gather,
                                const std::function<void(std::size_t, std::size_t)>& apply) {
-  Pipeline pipeline(n, helpers + 1, gather);
+  slots = pipeline_slots(helpers, slots);
+  Pipeline pipeline(n, slots, gather);
   std::vector<std::thread> threads;
   try {
     for (std::size_t h = 0; h < helpers; ++h)
@@ -113,7 +114,7 @@ void gather_and_apply_in_order(std::size_t n, std::size_t helpers,
   }
   for (std::size_t i = 0; i < n && pipeline.wait_for(i); ++i) {
     try {
-      apply(i, i % (helpers + 1));
+      apply(i, i % slots);
     } catch (...) {
       pipeline.stop(std::current_exception());
       break;
