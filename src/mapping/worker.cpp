@@ -78,14 +78,16 @@ void MappingWorker::correct(std::unordered_map<KeyframeId, SE3> T_w_c, bool list
   if (!worker_ || failure_->failed()) return;  // finished or failed: dropped
   auto poses = std::make_shared<std::unordered_map<KeyframeId, SE3>>(std::move(T_w_c));
   post_guarded([this, poses, listed_only] {
-    // Only this thread writes map_: it reads it without the lock, corrects a copy (a rebuild
-    // takes long), and takes the lock only to swap it in.
-    OccupancyMap corrected = map_.clone();
-    corrected.correct(*poses, listed_only);
-    const std::lock_guard<std::mutex> lock(map_mutex_);
-    map_ = std::move(corrected);
-    ++version_;
+    change_off_lock([&](OccupancyMap& map) { map.correct(*poses, listed_only); });
   });
+}
+
+void MappingWorker::change_off_lock(const std::function<void(OccupancyMap&)>& change) {
+  OccupancyMap changed = map_.clone();
+  change(changed);
+  const std::lock_guard<std::mutex> lock(map_mutex_);
+  map_ = std::move(changed);
+  ++version_;
 }
 
 void MappingWorker::set_floor(std::optional<FloorPlane> floor) {
@@ -132,12 +134,10 @@ void MappingWorker::settle() {
   if (!worker_ || failure_->failed()) return;
   post_guarded([this] {
     if (map_.pending()) {  // integration "at_end": off the lock, as correct() rebuilds
-      OccupancyMap integrated = map_.clone();
-      integrated.integrate_pending();
-      integrated.settle();
-      const std::lock_guard<std::mutex> lock(map_mutex_);
-      map_ = std::move(integrated);
-      ++version_;
+      change_off_lock([](OccupancyMap& map) {
+        map.integrate_pending();
+        map.settle();
+      });
       return;
     }
     // The same voxels in fewer nodes: no new version, but the next snapshot is built anew (its

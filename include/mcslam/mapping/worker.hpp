@@ -99,6 +99,10 @@ class MappingWorker {
   void settle();
   /// A job on the map under its lock.
   void run(const std::function<void(OccupancyMap&)>& job);
+  /// On the thread: `change` applied to a copy of the map off the lock (a rebuild takes long,
+  /// and snapshot() may be called meanwhile), the copy swapped in under it. Only the thread
+  /// writes map_, so it may read it without the lock.
+  void change_off_lock(const std::function<void(OccupancyMap&)>& change);
 
   mutable std::mutex map_mutex_;  ///< guards map_, version_, floor_ and the cached snapshot
   OccupancyMap map_;
