@@ -321,7 +321,7 @@ void OccupancyMap::Impl::reintegrate_with_helpers(std::size_t helpers) {
   // Two collectors a thread: a helper gathers the next keyframes while this thread applies one
   // (applying takes about as long as gathering: with one a thread, this thread gathered half the
   // keyframes and applied all of them while the helper waited for a free collector).
-  const std::size_t slots = detail::pipeline_slots(helpers, helpers > 0 ? 2 * (helpers + 1) : 1);
+  const std::size_t slots = helpers > 0 ? 2 * (helpers + 1) : 1;
   std::vector<detail::Collector> ring(slots);
   std::swap(ring[0], collector);  // its scratch space has grown already (a fresh one is valid too)
   detail::gather_and_apply_in_order(
