@@ -131,11 +131,19 @@ TEST(System, TheOnlinePoseIsFilteredAndTheFinalTrajectoryIsNot) {
 }
 
 TEST(System, ThreadedMappingTracksToo) {
-  const auto& seq = test::rendered_sequence(150, false);
+#ifdef MCSLAM_TSAN
+  // Under ThreadSanitizer the run is for its threads (60 frames: a dozen keyframes, local
+  // bundle adjustments while the tracker reads the map; 150 took 69 s there); the release build
+  // checks the accuracy of the whole 150.
+  constexpr int kFrames = 60;
+#else
+  constexpr int kFrames = 150;
+#endif
+  const auto& seq = test::rendered_sequence(kFrames, false);
   SystemOptions options;
   options.sequential = false;
   const RunResult r = run(seq, options);
-  EXPECT_EQ(r.tracked, 150);
+  EXPECT_EQ(r.tracked, kFrames);
   EXPECT_LT(eval::evaluate(seq.groundtruth, r.trajectory).ate.translation.rmse, 0.01);
 }
 
