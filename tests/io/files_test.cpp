@@ -14,7 +14,7 @@ namespace {
 using iotest::expect_input_error;
 using iotest::TempDir;
 
-std::string read_all(const std::string& path) {
+std::string read_file_bytes(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
 }
@@ -23,11 +23,11 @@ TEST(Files, WriteFileAtomicCreatesAndReplaces) {
   TempDir dir;
   const std::string path = dir.file("out.txt");
   write_file_atomic(path, "first\n");
-  EXPECT_EQ(read_all(path), "first\n");
+  EXPECT_EQ(read_file_bytes(path), "first\n");
   write_file_atomic(path, std::string("second\0binary", 13));
-  EXPECT_EQ(read_all(path), std::string("second\0binary", 13));
+  EXPECT_EQ(read_file_bytes(path), std::string("second\0binary", 13));
   write_file_atomic(path, "");
-  EXPECT_EQ(read_all(path), "");
+  EXPECT_EQ(read_file_bytes(path), "");
   int files = 0;
   for ([[maybe_unused]] const auto& entry : std::filesystem::directory_iterator(dir.str())) ++files;
   EXPECT_EQ(files, 1);  // no temporary left behind

@@ -27,7 +27,7 @@ constexpr int kPoints = 12;
 constexpr int kLines = 4;
 constexpr int kPlanes = 2;
 
-std::shared_ptr<const features::ScalePyramid> pyramid() {
+std::shared_ptr<const features::ScalePyramid> session_pyramid() {
   static const auto p = std::make_shared<const features::ScalePyramid>(8, 1.2);
   return p;
 }
@@ -69,7 +69,7 @@ SE3 random_pose(std::mt19937_64& rng) {
 /// other with depth), kPlanes planes with hulls; random values from `rng`.
 std::shared_ptr<const features::FrameFeatures> random_features(std::mt19937_64& rng) {
   auto f = std::make_shared<features::FrameFeatures>();
-  f->pyramid = pyramid();
+  f->pyramid = session_pyramid();
   std::vector<features::Keypoint> keypoints;
   for (int i = 0; i < kPoints; ++i) {
     features::PointFeature p;

@@ -17,7 +17,7 @@ namespace {
 using RowJ7 = Eigen::Matrix<double, 2, 7, Eigen::RowMajor>;
 using RowJ3 = Eigen::Matrix<double, 2, 3, Eigen::RowMajor>;
 
-SE3 random_pose(std::mt19937& rng) { return test::random_pose(rng, 0.5); }
+SE3 spread_pose(std::mt19937& rng) { return test::random_pose(rng, 0.5); }
 
 // The normalised image line through two pixels.
 Eigen::Vector3d line_through(const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
@@ -36,7 +36,7 @@ LineCase random_case(const PinholeCamera& cam, std::mt19937& rng) {
   std::uniform_real_distribution<double> u(50.0, 590.0), v(50.0, 430.0), z(1.0, 4.0),
       off(-5.0, 5.0);
   LineCase c;
-  c.T_c_w = random_pose(rng);
+  c.T_c_w = spread_pose(rng);
   const Eigen::Vector3d s_c = cam.unproject({u(rng), v(rng)}, z(rng));
   const Eigen::Vector3d e_c = cam.unproject({u(rng), v(rng)}, z(rng));
   c.start_w = c.T_c_w.inverse() * s_c;

@@ -32,7 +32,7 @@ std::vector<PoseObservation> make_observations(const PinholeCamera& cam, const S
 }
 
 // The normalised image line through two pixels.
-Eigen::Vector3d line_through(const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+Eigen::Vector3d image_line_through(const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
   const Eigen::Vector3d l = a.homogeneous().cross(b.homogeneous());
   return l / l.head<2>().norm();
 }
@@ -52,8 +52,8 @@ std::vector<PoseLineObservation> make_line_observations(const PinholeCamera& cam
     obs.start_w = T_c_w.inverse() * s_c;
     obs.end_w = T_c_w.inverse() * e_c;
     obs.measurement.coefficients =
-        line_through(cam.project(s_c) + Eigen::Vector2d(noise(rng), noise(rng)),
-                     cam.project(e_c) + Eigen::Vector2d(noise(rng), noise(rng)));
+        image_line_through(cam.project(s_c) + Eigen::Vector2d(noise(rng), noise(rng)),
+                           cam.project(e_c) + Eigen::Vector2d(noise(rng), noise(rng)));
     out.push_back(obs);
   }
   return out;
@@ -75,7 +75,7 @@ Eigen::Vector4d make_plane(const Eigen::Vector3d& n, double d) {
 }
 
 // Rotation (rad) and translation (m) error of an estimate.
-std::pair<double, double> pose_error(const SE3& estimate, const SE3& truth) {
+std::pair<double, double> pose_error_of(const SE3& estimate, const SE3& truth) {
   const Vector6d e = (estimate * truth.inverse()).log();
   return {e.tail<3>().norm(), e.head<3>().norm()};
 }
@@ -100,8 +100,8 @@ void observe_all(const PinholeCamera& cam, const SE3& T_c_w, int k,
     BundleAdjustmentProblem::LineObservation obs;
     obs.pose = k;
     obs.line = static_cast<int>(i);
-    obs.measurement.coefficients = line_through(cam.project(T_c_w * lines[i].start) + noise(),
-                                                cam.project(T_c_w * lines[i].end) + noise());
+    obs.measurement.coefficients = image_line_through(cam.project(T_c_w * lines[i].start) + noise(),
+                                                      cam.project(T_c_w * lines[i].end) + noise());
     problem.line_observations.push_back(obs);
   }
 }
@@ -242,10 +242,10 @@ TEST(PoseOptimizer, RecoversPoseFromLinesOnly) {
   PoseLineObservation behind;
   behind.start_w = test_truth().inverse() * Eigen::Vector3d(0.2, 0.1, -0.5);
   behind.end_w = test_truth().inverse() * Eigen::Vector3d(0.3, 0.0, 2.0);
-  behind.measurement.coefficients = line_through({100.0, 200.0}, {400.0, 260.0});
+  behind.measurement.coefficients = image_line_through({100.0, 200.0}, {400.0, 260.0});
   problem.lines.push_back(behind);
   const auto result = optimize_pose(cam, test_initial(), problem, PoseOptimizerOptions{});
-  const auto [rot, trans] = pose_error(result.T_c_w, test_truth());
+  const auto [rot, trans] = pose_error_of(result.T_c_w, test_truth());
   EXPECT_LT(rot, 0.003);
   EXPECT_LT(trans, 0.005);
   EXPECT_EQ(result.num_inliers, 0);
@@ -268,7 +268,7 @@ TEST(PoseOptimizer, RecoversPoseFromThreePlanesOnly) {
     problem.planes.push_back(obs);
   }
   const auto result = optimize_pose(cam, test_initial(), problem, PoseOptimizerOptions{});
-  const auto [rot, trans] = pose_error(result.T_c_w, test_truth());
+  const auto [rot, trans] = pose_error_of(result.T_c_w, test_truth());
   EXPECT_LT(rot, 1e-6);
   EXPECT_LT(trans, 1e-6);
   EXPECT_EQ(result.num_plane_inliers, 3);
@@ -304,7 +304,7 @@ TEST(PoseOptimizer, PointsLinesPlanesWithOutliersOfEachKind) {
       Eigen::AngleAxisd(0.26, Eigen::Vector3d::UnitX()) * problem.planes[4].measurement.normal;
 
   const auto result = optimize_pose(cam, test_initial(), problem, PoseOptimizerOptions{});
-  const auto [rot, trans] = pose_error(result.T_c_w, truth);
+  const auto [rot, trans] = pose_error_of(result.T_c_w, truth);
   EXPECT_LT(rot, 0.003);
   EXPECT_LT(trans, 0.005);
   int lost = 0;
@@ -403,7 +403,7 @@ TEST(BundleAdjustment, PointsLinesAndPlanesConvergeToTruth) {
   for (bool inlier : result.line_inlier) EXPECT_TRUE(inlier);
   for (bool inlier : result.plane_inlier) EXPECT_TRUE(inlier);
   EXPECT_EQ((problem.poses[0].log() - truth_poses[0].log()).norm(), 0.0);  // fixed stays fixed
-  const auto [rot, trans] = pose_error(problem.poses[1], truth_poses[1]);
+  const auto [rot, trans] = pose_error_of(problem.poses[1], truth_poses[1]);
   EXPECT_LT(rot, 1e-5);
   EXPECT_LT(trans, 1e-5);
   for (std::size_t i = 0; i < truth_points.size(); ++i)
@@ -516,7 +516,7 @@ TEST(PoseOptimizer, APointBehindTheCameraAtTheStartIsAnOutlierNotAFailure) {
     EXPECT_FALSE(result.failed) << "seed " << seed;
     EXPECT_GE(result.behind_camera, 1) << "seed " << seed;
     EXPECT_FALSE(result.inlier[7]) << "seed " << seed;
-    const auto [rotation, translation] = pose_error(result.T_c_w, truth);
+    const auto [rotation, translation] = pose_error_of(result.T_c_w, truth);
     EXPECT_LT(translation, 0.005) << "seed " << seed;
     EXPECT_LT(rotation, 0.002) << "seed " << seed;
   }
@@ -543,7 +543,7 @@ TEST(BundleAdjustment, AnObservationBehindItsCameraIsDroppedAndTheRestConverges)
   EXPECT_EQ(result.behind_camera, 1);
   EXPECT_FALSE(result.inlier.back());
   for (int k = 2; k < 4; ++k) {
-    const auto [rotation, translation] = pose_error(problem.poses[k], truth_poses[k]);
+    const auto [rotation, translation] = pose_error_of(problem.poses[k], truth_poses[k]);
     EXPECT_LT(translation, 0.003) << "pose " << k;
     EXPECT_LT(rotation, 0.002) << "pose " << k;
   }

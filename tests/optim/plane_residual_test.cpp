@@ -42,7 +42,7 @@ Eigen::Vector3d evaluate(const ceres::CostFunction& cost, const double* pose, co
   return r;
 }
 
-double tolerance(const Eigen::MatrixXd& numeric) { return 1e-5 * (1.0 + numeric.norm()); }
+double plane_tolerance(const Eigen::MatrixXd& numeric) { return 1e-5 * (1.0 + numeric.norm()); }
 
 // Analytic ambient and tangent Jacobians of a PlaneError against central differences.
 void check_plane_jacobians(const PlaneMeasurement& m, const SE3& T_c_w,
@@ -69,8 +69,8 @@ void check_plane_jacobians(const PlaneMeasurement& m, const SE3& T_c_w,
   const Eigen::MatrixXd num_plane = test::numeric_jacobian(
       [&](const Eigen::VectorXd& x) { return Eigen::VectorXd(evaluate(cost, pose, x.data())); },
       plane);
-  EXPECT_LT((num_pose - Eigen::MatrixXd(J_pose)).norm(), tolerance(num_pose));
-  EXPECT_LT((num_plane - Eigen::MatrixXd(J_plane)).norm(), tolerance(num_plane));
+  EXPECT_LT((num_pose - Eigen::MatrixXd(J_pose)).norm(), plane_tolerance(num_pose));
+  EXPECT_LT((num_plane - Eigen::MatrixXd(J_plane)).norm(), plane_tolerance(num_plane));
 
   // Tangent Jacobians through both manifolds, as Ceres forms them.
   SE3Manifold se3;
@@ -93,8 +93,8 @@ void check_plane_jacobians(const PlaneMeasurement& m, const SE3& T_c_w,
         return Eigen::VectorXd(evaluate(cost, pose, moved));
       },
       Eigen::VectorXd::Zero(3));
-  EXPECT_LT((num_xi - Eigen::MatrixXd(J_pose) * P_pose).norm(), tolerance(num_xi));
-  EXPECT_LT((num_delta - Eigen::MatrixXd(J_plane) * P_plane).norm(), tolerance(num_delta));
+  EXPECT_LT((num_xi - Eigen::MatrixXd(J_pose) * P_pose).norm(), plane_tolerance(num_xi));
+  EXPECT_LT((num_delta - Eigen::MatrixXd(J_plane) * P_plane).norm(), plane_tolerance(num_delta));
 }
 
 TEST(PlaneParameterisation, SphericalAndWrap) {
@@ -268,7 +268,7 @@ TEST(PoseOnlyPlaneError, MatchesFullResidualAndNumeric) {
           return Eigen::VectorXd(out);
         },
         Eigen::Map<Eigen::VectorXd>(pose, 7));
-    EXPECT_LT((num - Eigen::MatrixXd(J_pose_only)).norm(), tolerance(num)) << trial;
+    EXPECT_LT((num - Eigen::MatrixXd(J_pose_only)).norm(), plane_tolerance(num)) << trial;
   }
 }
 

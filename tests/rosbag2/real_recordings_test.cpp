@@ -66,8 +66,6 @@ class RealRecordings : public ::testing::Test {
   }
 };
 
-}  // namespace
-
 TEST_F(RealRecordings, ListingMatchesMetadata) {
   for (const std::string name :
        {"sqlite3/talker", "mcap/talker", "sqlite3/cdr_test", "mcap/cdr_test",
@@ -136,3 +134,5 @@ TEST_F(RealRecordings, AsAFrameSourceTheMissingTopicsAreListed) {
     EXPECT_NE(m.find("/topic (std_msgs/msg/String, 10)"), std::string::npos) << m;
   }
 }
+
+}  // namespace

@@ -39,18 +39,18 @@ const RollingSequence& rolling_sequence() {
   return sequence;
 }
 
-struct RunResult {
+struct ShutterRun {
   int tracked = 0;
   eval::EvalReport report;
 };
 
-RunResult run(const RollingSequence& seq, double readout_time) {
+ShutterRun run(const RollingSequence& seq, double readout_time) {
   PinholeCamera camera = seq.camera;
   camera.readout_time = readout_time;
   SystemOptions options;
   options.sequential = true;
   System system(camera, options);
-  RunResult r;
+  ShutterRun r;
   for (std::size_t i = 0; i < seq.frames.size(); ++i) {
     const FrameResult fr =
         system.process(seq.frames[i].rgb, seq.frames[i].depth, seq.groundtruth[i].timestamp);
@@ -64,8 +64,8 @@ RunResult run(const RollingSequence& seq, double readout_time) {
 TEST(RollingShutter, CompensationLowersTheTrajectoryErrorOnFastRotation) {
   const RollingSequence& seq = rolling_sequence();
   ASSERT_EQ(seq.camera.readout_time, kReadout);
-  const RunResult plain = run(seq, 0.0);
-  const RunResult compensated = run(seq, kReadout);
+  const ShutterRun plain = run(seq, 0.0);
+  const ShutterRun compensated = run(seq, kReadout);
   const double ate_plain = plain.report.ate.translation.rmse;
   const double ate_compensated = compensated.report.ate.translation.rmse;
   std::printf(

@@ -12,19 +12,19 @@
 namespace mcslam::slam {
 namespace {
 
-struct RunResult {
+struct StructureRun {
   Trajectory trajectory;
   int tracked = 0;
   std::size_t lines_in_map = 0;
   std::size_t planes_in_map = 0;
 };
 
-RunResult run(const test::RenderedSequence& seq, const FeatureSwitches& use) {
+StructureRun run_structure(const test::RenderedSequence& seq, const FeatureSwitches& use) {
   SystemOptions options;
   options.sequential = true;
   options.use = use;
   System system(seq.camera, options);
-  RunResult r;
+  StructureRun r;
   for (std::size_t i = 0; i < seq.frames.size(); ++i) {
     const auto& f = seq.frames[i];
     r.tracked +=
@@ -39,7 +39,7 @@ RunResult run(const test::RenderedSequence& seq, const FeatureSwitches& use) {
   return r;
 }
 
-double ate(const test::RenderedSequence& seq, const RunResult& r) {
+double ate(const test::RenderedSequence& seq, const StructureRun& r) {
   if (r.trajectory.size() < 3) return 1e9;
   return eval::evaluate(seq.groundtruth, r.trajectory).ate.translation.rmse;
 }
@@ -50,8 +50,8 @@ const test::RenderedSequence& low_texture_room() {
 
 TEST(Structure, LowTextureRoomNeedsLinesAndPlanes) {
   const auto& seq = low_texture_room();
-  const RunResult points = run(seq, {true, false, false});
-  const RunResult all = run(seq, {true, true, true});
+  const StructureRun points = run_structure(seq, {true, false, false});
+  const StructureRun all = run_structure(seq, {true, true, true});
   std::printf(
       "low-texture room: points %d/150 tracked (ATE %.4f), points+lines+planes %d/150 "
       "(ATE %.4f), map %zu lines %zu planes\n",
@@ -69,7 +69,7 @@ TEST(Structure, EveryFeatureCombinationTracksTheTexturedRoom) {
   for (const FeatureSwitches use :
        {FeatureSwitches{true, true, false}, FeatureSwitches{true, false, true},
         FeatureSwitches{true, true, true}}) {
-    const RunResult r = run(seq, use);
+    const StructureRun r = run_structure(seq, use);
     EXPECT_GE(r.tracked, 89) << use.points << use.lines << use.planes;
     EXPECT_LT(ate(seq, r), 0.015) << use.points << use.lines << use.planes;
     EXPECT_EQ(r.lines_in_map > 0, use.lines);

@@ -31,9 +31,9 @@ namespace fs = std::filesystem;
 using Dyn = SynthOptions::DynamicObjects;
 
 constexpr int kPerson1 = 8;  // after the 8 static objects
-constexpr int kChair = 9;
+constexpr int kCrowdChair = 9;
 /// Scene::objects index of person `number` >= 2 when the chair is in the scene.
-constexpr int crowd_index(int number) { return kChair + number - 1; }
+constexpr int crowd_index(int number) { return kCrowdChair + number - 1; }
 
 /// 160 x 120 (the intrinsics of 640 x 480 scaled by 1/4), so that rendering stays cheap; image
 /// fractions are those of 640 x 480 up to the pixel grid.
@@ -53,7 +53,7 @@ SynthOptions crowd_options(int people, int undetected = 0, int frames = 300) {
 
 /// For tests of the motion only: plain textures are faster to generate and do not change the
 /// geometry.
-Scene motion_scene_of(SynthOptions o) {
+Scene crowd_motion_scene_of(SynthOptions o) {
   o.texture = TextureLevel::kLow;
   return make_room_scene(o);
 }
@@ -186,8 +186,8 @@ TEST(CrowdScene, OnePersonIsTheSceneAsBefore) {
   }
 
   // With a crowd, the first ten objects (and their textures) are the same.
-  const Scene crowd = motion_scene_of(crowd_options(Dyn::kMaxPeople));
-  const Scene alone = motion_scene_of(crowd_options(1));
+  const Scene crowd = crowd_motion_scene_of(crowd_options(Dyn::kMaxPeople));
+  const Scene alone = crowd_motion_scene_of(crowd_options(1));
   ASSERT_EQ(crowd.objects.size(), 15u);
   for (std::size_t k = 0; k < alone.objects.size(); ++k) {
     EXPECT_EQ(crowd.objects[k].class_name, alone.objects[k].class_name);
@@ -209,7 +209,7 @@ TEST(CrowdScene, OnePersonIsTheSceneAsBefore) {
   SynthOptions no_person = crowd_options(Dyn::kMaxPeople);
   no_person.dynamic.person = false;
   for (const SynthOptions& o : {zero, no_person}) {
-    const Scene scene = motion_scene_of(o);
+    const Scene scene = crowd_motion_scene_of(o);
     ASSERT_EQ(scene.objects.size(), 9u);
     EXPECT_EQ(scene.objects[8].class_name, "chair");
   }
@@ -221,7 +221,7 @@ TEST(CrowdScene, EveryPersonIsAFreeMoverWithItsOwnTexture) {
   ASSERT_EQ(scene.objects.size(), 15u);
   std::vector<int> people = {kPerson1};
   for (int number = 2; number <= Dyn::kMaxPeople; ++number) people.push_back(crowd_index(number));
-  EXPECT_EQ(scene.objects[kChair].class_name, "chair");
+  EXPECT_EQ(scene.objects[kCrowdChair].class_name, "chair");
   for (std::size_t n = 0; n < people.size(); ++n) {
     const SceneObject& p = scene.objects[people[n]];
     EXPECT_EQ(p.class_name, "person");
@@ -250,7 +250,7 @@ TEST(CrowdScene, EveryPersonIsAFreeMoverWithItsOwnTexture) {
   // The motion does not depend on the seed (only textures and noise do).
   SynthOptions other_seed = o;
   other_seed.seed = 99;
-  const Scene other = motion_scene_of(other_seed);
+  const Scene other = crowd_motion_scene_of(other_seed);
   for (int k : people)
     for (double t : {0.0, 2.0, 7.5})
       EXPECT_EQ(
@@ -265,7 +265,7 @@ TEST(CrowdScene, StartAtRestThenWalkSmoothlyEachAtItsPace) {
     SynthOptions o = crowd_options(Dyn::kMaxPeople);
     o.dynamic.person_speed = person_speed;
     o.dynamic.start_time = start;
-    const Scene scene = motion_scene_of(o);
+    const Scene scene = crowd_motion_scene_of(o);
     std::vector<double> peaks;
     for (int number = 2; number <= Dyn::kMaxPeople; ++number) {
       const SceneObject& p = scene.objects[crowd_index(number)];
@@ -316,7 +316,7 @@ TEST(CrowdScene, ClearOfTheCameraTheRoomTheFurnitureAndEachOther) {
     o.dynamic.person_speed = c.person_speed;
     o.dynamic.chair_speed = c.chair_speed;
     o.speed = c.camera_speed;
-    const Scene scene = motion_scene_of(o);
+    const Scene scene = crowd_motion_scene_of(o);
     const Trajectory path = camera_path(o);
     const int n = static_cast<int>(scene.objects.size());
     double min_camera = 1e9;

@@ -18,7 +18,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-SynthOptions small_options() {
+SynthOptions tiny_options() {
   SynthOptions o;
   o.width = 160;
   o.height = 120;
@@ -54,7 +54,7 @@ std::string read_all(const fs::path& path) {
 }
 
 TEST(SyntheticSequence, SameSeedSameImagesDifferentSeedDifferentTextures) {
-  const SynthOptions o = small_options();
+  const SynthOptions o = tiny_options();
   const SyntheticSequence a(o), b(o);
   SynthOptions o2 = o;
   o2.seed = 2;
@@ -75,7 +75,7 @@ TEST(SyntheticSequence, SameSeedSameImagesDifferentSeedDifferentTextures) {
 }
 
 TEST(SyntheticSequence, RejectsBadOptions) {
-  SynthOptions o = small_options();
+  SynthOptions o = tiny_options();
   o.frames = 0;
   try {
     SyntheticSequence s(o);
@@ -88,7 +88,7 @@ TEST(SyntheticSequence, RejectsBadOptions) {
 TEST(WriteSequence, WritesReadableTumFolder) {
   const TempDir tmp;
   const fs::path dir = tmp.path() / "seq";
-  const SynthOptions o = small_options();
+  const SynthOptions o = tiny_options();
   std::vector<std::pair<int, int>> calls;
   write_sequence(dir.string(), o, [&](int done, int total) { calls.emplace_back(done, total); });
   ASSERT_EQ(calls.size(), 5u);
@@ -136,7 +136,7 @@ TEST(WriteSequence, WritesReadableTumFolder) {
 }
 
 TEST(SyntheticSequence, RollingShutterFramesKeepTheMiddleRowPose) {
-  SynthOptions o = small_options();
+  SynthOptions o = tiny_options();
   o.speed = 3.0;
   const SyntheticSequence global(o);
   o.readout_time = 0.03;
@@ -160,7 +160,7 @@ TEST(SyntheticSequence, RollingShutterFramesKeepTheMiddleRowPose) {
 
 TEST(WriteSequence, WritesReadoutTimeOnlyForARollingShutter) {
   const TempDir tmp;
-  SynthOptions o = small_options();
+  SynthOptions o = tiny_options();
   o.frames = 1;
   o.readout_time = 0.03;
   write_sequence((tmp.path() / "rolling").string(), o);
@@ -180,12 +180,12 @@ TEST(WriteSequence, ThrowsWhenTheDirectoryCannotBeCreated) {
   std::ofstream(blocker) << "not a directory";
   const std::string target = (blocker / "seq").string();
   try {
-    write_sequence(target, small_options());
+    write_sequence(target, tiny_options());
     ADD_FAILURE() << "wrote below a regular file";
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find(blocker.string()), std::string::npos) << e.what();
   }
-  SynthOptions bad = small_options();
+  SynthOptions bad = tiny_options();
   bad.fps = -1.0;
   try {
     write_sequence((tmp.path() / "other").string(), bad);
