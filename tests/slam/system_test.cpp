@@ -132,9 +132,9 @@ TEST(System, TheOnlinePoseIsFilteredAndTheFinalTrajectoryIsNot) {
 
 TEST(System, ThreadedMappingTracksToo) {
 #ifdef MCSLAM_TSAN
-  // Under ThreadSanitizer the run is for its threads (60 frames: a dozen keyframes, local
-  // bundle adjustments while the tracker reads the map; 150 took 69 s there); the release build
-  // checks the accuracy of the whole 150.
+  // Under ThreadSanitizer the run is for its threads (60 frames: keyframes and local bundle
+  // adjustments while the tracker reads the map; 150 took 69 s there); the release build checks
+  // the accuracy of the whole 150.
   constexpr int kFrames = 60;
 #else
   constexpr int kFrames = 150;
