@@ -2,9 +2,8 @@
 # headers most test files include (GoogleTest, Eigen, OpenCV's core, nlohmann/json) are parsed
 # once per build instead of once per file, where they took about 6 of a test file's 8.5 s of
 # compilation: the test files' compilation went from 657 to 542 s of CPU (a clean release build
-# on 2 cores). The
-# libraries' files gain nothing measurable from one (their time is code generation: 655 against
-# 674 s), so they have none. Every test reuses the one host's header; under -Werror a header GCC
+# on 2 cores). The libraries' files gain nothing measurable from one (their time is code
+# generation: 655 against 674 s), so they have none. Every test reuses the one host's header; under -Werror a header GCC
 # could not use fails the build (-Winvalid-pch), so a mismatch never passes silently. Clang (the
 # fuzz preset's ASan + UBSan tests) uses it too: their compilation 345 -> 244 s of CPU.
 # MCSLAM_PCH=OFF compiles without it.
