@@ -260,13 +260,22 @@ void OccupancyMap::Impl::apply(const detail::Collector& collected) {
   const double yield = options.spread_yield_ratio;
   detail::LeafFinder leaves(tree);
   // OcTree::updateNode's own first step, from the path of the voxel before: no change where the
-  // voxel is clamped already (most of the free space a keyframe sees again).
+  // voxel is clamped already (most of the free space a keyframe sees again). A voxel that is a
+  // node of its own is updated in place, as updateNode's lazy update does at the end of its own
+  // two walks from the root; a new or pruned one goes through updateNode, which makes its node.
   const auto update = [&](const octomap::OcTreeKey& key, float log_odds) {
     const octomap::OcTreeNode* leaf = leaves.find(key);
-    if (leaf != nullptr && (log_odds >= 0.0f ? leaf->getLogOdds() >= tree.getClampingThresMaxLog()
-                                             : leaf->getLogOdds() <= tree.getClampingThresMinLog()))
+    if (leaf == nullptr) {
+      tree.updateNode(key, log_odds, true);
       return;
-    tree.updateNode(key, log_odds, true);
+    }
+    if (log_odds >= 0.0f ? leaf->getLogOdds() >= tree.getClampingThresMaxLog()
+                         : leaf->getLogOdds() <= tree.getClampingThresMinLog())
+      return;
+    if (leaves.depth() == static_cast<int>(tree.getTreeDepth()))
+      tree.updateNodeLogOdds(const_cast<octomap::OcTreeNode*>(leaf), log_odds);  // the tree's own
+    else
+      tree.updateNode(key, log_odds, true);
   };
   for (const detail::KeyMarks::Entry& e : marks.entries()) {
     const octomap::OcTreeKey& key = e.key;

@@ -80,6 +80,10 @@ class LeafFinder {
     return node;
   }
 
+  /// The depth of the node the last find() returned (16: a voxel of the finest resolution; less:
+  /// a pruned leaf that covers it). Meaningless after a find() that returned nullptr.
+  int depth() const { return depth_; }
+
  private:
   const octomap::OcTree& tree_;
   std::array<const octomap::OcTreeNode*, 17> path_{};  ///< the previous key's, root first
