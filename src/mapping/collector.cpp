@@ -40,16 +40,18 @@ void Collector::set_view_window(const octomap::OcTree& tree, const OccupancyOpti
 
 /// Frees the voxels crossed by the rays add_free() noted, from `origin` to the centre of each
 /// end voxel, each crossing counted once per sample whose ray ends there.
+/// The rays' counts are kept only where a spread hit needs them (Impl::apply).
 void Collector::cast_rays(const octomap::OcTree& tree, const Eigen::Vector3d& origin) {
   const octomap::point3d from = to_point(origin);
   const std::size_t noted = marks_.entries().size();
+  marks_.begin_crossings(kCrossed, kSpreadHit);
   for (std::size_t e = 0; e < noted; ++e) {
     const KeyMarks::Entry end = marks_.entries()[e];  // a copy: marking may grow them
     if ((end.roles & kRayEnd) == 0) continue;
-    walk_ray(tree, from, tree.keyToCoord(end.key), [&](const octomap::OcTreeKey& key) {
-      marks_.add_rays(marks_.mark(key, kCrossed).entry, end.ends);
-    });
+    walk_ray(tree, from, tree.keyToCoord(end.key),
+             [&](const octomap::OcTreeKey& key) { marks_.cross(key, end.ends); });
   }
+  marks_.end_crossings();
 }
 
 /// The free ray and the hit of the sample at (i, j), seen from the camera at (R, o).

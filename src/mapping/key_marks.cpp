@@ -1,6 +1,7 @@
 #include "mapping/key_marks.hpp"
 
 #include <algorithm>
+#include <bit>
 
 namespace mcslam::mapping::detail {
 
@@ -78,6 +79,40 @@ void KeyMarks::grow() {
     const std::uint64_t packed = pack(entries_[e].key);
     slots_[find(packed)] = {packed, static_cast<std::uint32_t>(e), generation_};
   }
+}
+
+void KeyMarks::begin_crossings(std::uint8_t role, std::uint8_t counted) {
+  crossing_role_ = role;
+  const std::size_t words = (nx_ * ny_ * nz_ + 63) / 64;
+  crossed_bits_.assign(words, 0);
+  counted_bits_.assign(words, 0);
+  if (words == 0) return;
+  for (const Entry& e : entries_) {
+    const std::size_t cell = window_cell(e.key);
+    if ((e.roles & counted) != 0 && cell != kNoCell)
+      counted_bits_[cell >> 6] |= std::uint64_t{1} << (cell & 63);
+  }
+}
+
+void KeyMarks::end_crossings() {
+  for (std::size_t w = 0; w < crossed_bits_.size(); ++w) {
+    for (std::uint64_t bits = crossed_bits_[w]; bits != 0; bits &= bits - 1) {
+      const std::size_t cell = 64 * w + static_cast<std::size_t>(std::countr_zero(bits));
+      std::uint32_t& slot = cells_[cell];
+      if (slot != 0) {
+        add_role(slot - 1, crossing_role_);
+        continue;
+      }
+      const std::size_t x = cell % nx_, y = cell / nx_ % ny_, z = cell / (nx_ * ny_);
+      const octomap::OcTreeKey key(static_cast<octomap::key_type>(lo_[0] + x),
+                                   static_cast<octomap::key_type>(lo_[1] + y),
+                                   static_cast<octomap::key_type>(lo_[2] + z));
+      slot = static_cast<std::uint32_t>(entries_.size() + 1);
+      entries_.push_back({key, crossing_role_, 0, 0, 0, 0});
+    }
+  }
+  crossed_bits_.clear();
+  counted_bits_.clear();
 }
 
 void KeyMarks::clear() {

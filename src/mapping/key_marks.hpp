@@ -65,6 +65,28 @@ class KeyMarks {
   void count_hit(std::size_t entry) { ++entries_[entry].hits; }
   /// Takes `role` (one or more bits) from entry `entry`'s roles.
   void drop_role(std::size_t entry, std::uint8_t role) { entries_[entry].roles &= ~role; }
+  /// Crossings: one role marked on keys many times over, where few keys need the count (a
+  /// keyframe's rays cross each voxel ~8 times; only the voxels a spread hit reached weigh the
+  /// rays). Between begin_crossings() and end_crossings(), cross(key, n) marks `role`: inside
+  /// the window it sets the key's bit in a bitmap of the window's cells (a step touches neither
+  /// the grid nor the entries) and adds n to `rays` of the keys that held `counted` when the
+  /// crossings began; outside it, it marks and adds at once. end_crossings() gives the window's
+  /// crossed keys their role, making their entries in the window's order (x fastest, then y,
+  /// z). Roles are then those mark() would give, and `rays` those add_rays() would give on every
+  /// key that held `counted` or lies outside the window (the others' are not counted).
+  void begin_crossings(std::uint8_t role, std::uint8_t counted);
+  void cross(const octomap::OcTreeKey& key, std::uint32_t n) {
+    const std::size_t cell = window_cell(key);
+    if (cell == kNoCell) {
+      add_rays(mark(key, crossing_role_).entry, n);
+      return;
+    }
+    const std::uint64_t bit = std::uint64_t{1} << (cell & 63);
+    crossed_bits_[cell >> 6] |= bit;
+    if ((counted_bits_[cell >> 6] & bit) != 0) entries_[cells_[cell] - 1].rays += n;
+  }
+  void end_crossings();
+
   /// The key's entry (an index of entries()), or none.
   std::optional<std::size_t> find_entry(const octomap::OcTreeKey& key) const;
   /// The key's roles (0 when unmarked).
@@ -109,6 +131,9 @@ class KeyMarks {
   std::size_t nx_ = 0, ny_ = 0, nz_ = 0;  ///< the window's size; 0: none
   std::vector<Entry> entries_;
   std::size_t in_table_ = 0;  ///< entries in the table (outside the window)
+  /// Crossings: a bit a window cell, crossed, and held the counted role at the start.
+  std::vector<std::uint64_t> crossed_bits_, counted_bits_;
+  std::uint8_t crossing_role_ = 0;
 };
 
 }  // namespace mcslam::mapping::detail

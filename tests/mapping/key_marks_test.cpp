@@ -64,5 +64,54 @@ TEST(KeyMarks, HoldsTheSameRolesAsAMapAcrossGrowthWindowsAndClears) {
   }
 }
 
+TEST(KeyMarks, CrossingsGiveTheRolesAndCountsOfMarkingEachStep) {
+  std::mt19937 rng(9);
+  std::uniform_int_distribution<int> coord(32768 - 50, 32768 + 50), pick(0, 3);
+  std::uniform_int_distribution<std::uint32_t> count(1, 5);
+  constexpr std::uint8_t kRole = 1, kCounted = 16, kOther = 2;
+  const std::vector<std::pair<Key, Key>> windows = {
+      {{1, 1, 1}, {0, 0, 0}},  // none: every crossing marks at once
+      {{32768 - 20, 32768 - 50, 32768 - 30}, {32768 + 50, 32768 + 15, 32768 + 50}},
+      {{32768 - 50, 32768 - 50, 32768 - 50}, {32768 + 50, 32768 + 50, 32768 + 50}}};
+  for (std::size_t round = 0; round < windows.size(); ++round) {
+    KeyMarks marks, expected;  // crossings, and mark() + add_rays() at every step
+    const auto lo = key_of(windows[round].first), hi = key_of(windows[round].second);
+    marks.set_window(lo, hi);
+    expected.set_window(lo, hi);
+    const auto random_key = [&] { return key_of({coord(rng), coord(rng), coord(rng)}); };
+    for (int i = 0; i < 3000; ++i) {  // marks before the crossings, some with the counted role
+      const octomap::OcTreeKey k = random_key();
+      const std::uint8_t role = pick(rng) == 0 ? kCounted : kOther;
+      marks.mark(k, role);
+      expected.mark(k, role);
+    }
+    marks.begin_crossings(kRole, kCounted);
+    for (int i = 0; i < 200000; ++i) {
+      const octomap::OcTreeKey k = random_key();
+      const std::uint32_t n = count(rng);
+      marks.cross(k, n);
+      expected.add_rays(expected.mark(k, kRole).entry, n);
+    }
+    marks.end_crossings();
+    ASSERT_EQ(marks.entries().size(), expected.entries().size()) << "round " << round;
+    const auto inside = [&](const octomap::OcTreeKey& k) {
+      return round > 0 && k[0] >= lo[0] && k[0] <= hi[0] && k[1] >= lo[1] && k[1] <= hi[1] &&
+             k[2] >= lo[2] && k[2] <= hi[2];
+    };
+    std::size_t counted = 0;
+    for (const KeyMarks::Entry& e : expected.entries()) {
+      const auto found = marks.find_entry(e.key);
+      ASSERT_TRUE(found.has_value());
+      const KeyMarks::Entry& got = marks.entries()[*found];
+      EXPECT_EQ(got.roles, e.roles);
+      if ((e.roles & kCounted) != 0 || !inside(e.key)) {
+        EXPECT_EQ(got.rays, e.rays);
+        counted += e.rays > 0 ? 1 : 0;
+      }
+    }
+    EXPECT_GT(counted, 100u);
+  }
+}
+
 }  // namespace
 }  // namespace mcslam::mapping::detail
