@@ -19,11 +19,15 @@ TEST(LeafFinder, FindsWhatSearchFindsForKeysInAnyOrderWhileTheTreeGrows) {
   // leaves) under the finder's remembered path.
   std::uniform_int_distribution<int> coord(32768 - 40, 32768 + 40), step(-1, 1), pick(0, 9);
   // An aligned block of 8^3 voxels in one state, pruned into one leaf 3 levels up.
-  const auto fill_block = [&tree] {
+  const auto block_key = [](int x, int y, int z) {
+    return octomap::OcTreeKey(static_cast<octomap::key_type>(32768 + x),
+                              static_cast<octomap::key_type>(32768 + y),
+                              static_cast<octomap::key_type>(32768 + z));
+  };
+  const auto fill_block = [&tree, &block_key] {
     for (int x = 0; x < 8; ++x)
       for (int y = 0; y < 8; ++y)
-        for (int z = 0; z < 8; ++z)
-          tree.setNodeValue(octomap::OcTreeKey(32768 + x, 32768 + y, 32768 + z), -2.0f, true);
+        for (int z = 0; z < 8; ++z) tree.setNodeValue(block_key(x, y, z), -2.0f, true);
     tree.updateInnerOccupancy();
     tree.prune();
   };
@@ -36,7 +40,7 @@ TEST(LeafFinder, FindsWhatSearchFindsForKeysInAnyOrderWhileTheTreeGrows) {
     if (what == 0) {
       key = octomap::OcTreeKey(coord(rng), coord(rng), coord(rng));
     } else if (what == 9) {  // in the block
-      key = octomap::OcTreeKey(32768 + pick(rng) % 8, 32768 + pick(rng) % 8, 32768 + pick(rng) % 8);
+      key = block_key(pick(rng) % 8, pick(rng) % 8, pick(rng) % 8);
     } else if (what < 8) {
       for (int a = 0; a < 3; ++a) key[a] = static_cast<octomap::key_type>(key[a] + step(rng));
     }

@@ -140,7 +140,7 @@ struct OccupancyOptions {
   /// mapping thread applies them to the octree in the keyframes' order (the map is the same
   /// for any count). 2: the rebuild after the final bundle adjustment comes when the frames are
   /// done and every core is free; on Bonn crowd part1 it is the largest single cost of the map
-  /// (1.0-1.5 s for 60-115 keyframes, one thread). At most 16.
+  /// (0.5-0.7 s for 58 keyframes, 0.9-1.1 s for 115, one thread). At most 16.
   int rebuild_threads = 2;
   /// When keyframes are integrated into the octree. "live": each as it comes, so that the map
   /// can be read during the run (the viewer, the ROS node, Python). "at_end": each is sampled

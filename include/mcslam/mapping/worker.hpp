@@ -57,7 +57,7 @@ class MappingWorker {
   void enqueue_transient(KeyframeDepth view);
   /// Queues new poses (T_w_c) of stored keyframes, applied after the keyframes queued before:
   /// OccupancyMap::correct (the map rebuilds when one moved). The rebuild runs on a copy of the
-  /// map, off the lock (a rebuild takes ~20-40 ms per stored keyframe): readers keep the map
+  /// map, off the lock (a rebuild takes ~5-10 ms per stored keyframe): readers keep the map
   /// before the correction until the rebuilt one replaces it. A map::MapCorrection holds T_c_w:
   /// pass the sparse map's keyframe poses after it applied the correction, inverted (all of
   /// them, or those that moved).
