@@ -39,8 +39,8 @@ void Collector::set_view_window(const octomap::OcTree& tree, const OccupancyOpti
 }
 
 /// Frees the voxels crossed by the rays add_free() noted, from `origin` to the centre of each
-/// end voxel, each crossing counted once per sample whose ray ends there.
-/// The rays' counts are kept only where a spread hit needs them (Impl::apply).
+/// end voxel, each crossing counted once per sample whose ray ends there where a spread hit
+/// needs the count (Impl::apply reads it there only).
 void Collector::cast_rays(const octomap::OcTree& tree, const Eigen::Vector3d& origin) {
   const octomap::point3d from = to_point(origin);
   const std::size_t noted = marks_.entries().size();

@@ -40,8 +40,8 @@ bool walk_ray(const octomap::OcTree& tree, const octomap::point3d& origin,
     next_border[a] = (border - origin(a)) / d;
     across[a] = resolution / std::fabs(d);
   }
-  // The state in scalars, not arrays indexed by the axis: the compiler keeps them in registers
-  // (indexed, each step went through memory: 40 % of a rebuild's time was this loop).
+  // The state in scalars, not arrays indexed by the axis, so that the compiler keeps it in
+  // registers (indexed, each step went through memory: perf had this loop at 40 % of a rebuild).
   octomap::key_type k0 = key[0], k1 = key[1], k2 = key[2];
   double b0 = next_border[0], b1 = next_border[1], b2 = next_border[2];
   const auto advance = [](octomap::key_type& k, int s, double& b, double d) {
