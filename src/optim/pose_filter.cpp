@@ -21,6 +21,8 @@ std::optional<std::string> PoseFilterOptions::check() const {
     return "pose_filter.adaptive_memory must be a number of seconds >= 0 (0: fixed densities)";
   if (!(std::isfinite(max_liveliness) && max_liveliness >= 1.0))
     return "pose_filter.max_liveliness must be a number >= 1";
+  if (lag < 0 || lag > 300) return "pose_filter.lag must be a number of frames from 0 to 300";
+  if (lag > 0 && !enabled) return "pose_filter.lag needs pose_filter.enabled: true";
   return std::nullopt;
 }
 
@@ -28,7 +30,6 @@ namespace {
 
 using Matrix3d = Eigen::Matrix3d;
 using Vector3d = Eigen::Vector3d;
-using Matrix12d = Eigen::Matrix<double, 12, 12>;
 using Matrix12x6d = Eigen::Matrix<double, 12, 6>;
 
 // The state's blocks: camera centre, its velocity, rotation, angular velocity.
@@ -60,38 +61,51 @@ Matrix12x6d measured_columns(const Matrix12d& P) {
 
 }  // namespace
 
+SE3 PoseFilterState::T_c_w() const { return pose_of(R, c); }
+
+void PoseFilterState::move_world(const SE3& W) {
+  const Matrix3d R_W = W.rotation();
+  c = W * c;
+  v = R_W * v;
+  R = R * R_W.transpose();
+  Matrix12d J = Matrix12d::Identity();
+  J.block<3, 3>(kC, kC) = R_W;
+  J.block<3, 3>(kV, kV) = R_W;
+  P = J * P * J.transpose();
+}
+
 PoseFilter::PoseFilter(const PoseFilterOptions& options) : options_(options) {}
 
 void PoseFilter::restart(double timestamp, const SE3& T_c_w, const Matrix6d& information,
                          bool keep_velocities) {
-  const Matrix12d before = P_;
+  const Matrix12d before = x_.P;
   if (!keep_velocities) {
-    v_.setZero();
-    w_.setZero();
+    x_.v.setZero();
+    x_.w.setZero();
     liveliness_ = 1.0;
     mean_nis_ = 6.0;
   }
   started_ = true;
   timestamp_ = timestamp;
-  R_ = T_c_w.rotation();
-  c_ = -(R_.transpose() * T_c_w.translation());
+  x_.R = T_c_w.rotation();
+  x_.c = -(x_.R.transpose() * T_c_w.translation());
   // The pose as uncertain as its measurement says (a direction it leaves free: 1 m, 1 rad); the
   // velocities unknown at a handheld camera's scale (1 m/s, 2 rad/s).
   const double s2 = options_.measurement_noise_scale * options_.measurement_noise_scale;
-  Matrix6d H = information_on_centre(information, R_) / s2;
+  Matrix6d H = information_on_centre(information, x_.R) / s2;
   H += Matrix6d::Identity();
   const Matrix6d cov = H.inverse();
-  P_.setZero();
-  P_.block<3, 3>(kC, kC) = cov.block<3, 3>(0, 0);
-  P_.block<3, 3>(kC, kTheta) = cov.block<3, 3>(0, 3);
-  P_.block<3, 3>(kTheta, kC) = cov.block<3, 3>(3, 0);
-  P_.block<3, 3>(kTheta, kTheta) = cov.block<3, 3>(3, 3);
+  x_.P.setZero();
+  x_.P.block<3, 3>(kC, kC) = cov.block<3, 3>(0, 0);
+  x_.P.block<3, 3>(kC, kTheta) = cov.block<3, 3>(0, 3);
+  x_.P.block<3, 3>(kTheta, kC) = cov.block<3, 3>(3, 0);
+  x_.P.block<3, 3>(kTheta, kTheta) = cov.block<3, 3>(3, 3);
   if (keep_velocities) {
-    P_.block<3, 3>(kV, kV) = before.block<3, 3>(kV, kV);
-    P_.block<3, 3>(kW, kW) = before.block<3, 3>(kW, kW);
+    x_.P.block<3, 3>(kV, kV) = before.block<3, 3>(kV, kV);
+    x_.P.block<3, 3>(kW, kW) = before.block<3, 3>(kW, kW);
   } else {
-    P_.block<3, 3>(kV, kV) = Matrix3d::Identity() * 1.0;
-    P_.block<3, 3>(kW, kW) = Matrix3d::Identity() * 4.0;
+    x_.P.block<3, 3>(kV, kV) = Matrix3d::Identity() * 1.0;
+    x_.P.block<3, 3>(kW, kW) = Matrix3d::Identity() * 4.0;
   }
 }
 
@@ -105,10 +119,10 @@ void PoseFilter::adapt(double dt, double nis) {
   liveliness_ = std::clamp(liveliness_ * mean_nis_ / 6.0, 1.0, options_.max_liveliness);
 }
 
-void PoseFilter::predict(double dt) {
-  const Matrix3d A = rotation_exp(w_ * dt);
-  R_ = A * R_;
-  c_ += v_ * dt;
+Matrix12d PoseFilter::predict(double dt) {
+  const Matrix3d A = rotation_exp(x_.w * dt);
+  x_.R = A * x_.R;
+  x_.c += x_.v * dt;
   Matrix12d F = Matrix12d::Identity();
   F.block<3, 3>(kC, kV) = Matrix3d::Identity() * dt;
   F.block<3, 3>(kTheta, kTheta) = A;
@@ -123,74 +137,82 @@ void PoseFilter::predict(double dt) {
   };
   add(kC, kV, options_.acceleration_density * liveliness_);
   add(kTheta, kW, options_.angular_acceleration_density * liveliness_);
-  P_ = F * P_ * F.transpose() + Q;
+  x_.P = F * x_.P * F.transpose() + Q;
+  return F;
+}
+
+PoseFilterUpdate PoseFilter::restarted_at(double timestamp, const SE3& T_c_w, double nis) {
+  PoseFilterUpdate out;
+  out.T_c_w = T_c_w;
+  out.nis = nis;
+  out.restarted = true;
+  out.step = PoseFilterStep{timestamp, true, x_, Matrix12d::Identity(), x_};
+  return out;
 }
 
 PoseFilterUpdate PoseFilter::update(double timestamp, const SE3& T_c_w,
                                     const Matrix6d& information) {
-  PoseFilterUpdate out;
-  out.T_c_w = T_c_w;
-  if (!options_.enabled) return out;
+  if (!options_.enabled) {
+    PoseFilterUpdate out;
+    out.T_c_w = T_c_w;
+    return out;
+  }
   const double dt = timestamp - timestamp_;
   if (!started_ || !(dt > 0.0) || dt > options_.max_gap || !information.allFinite()) {
     restart(timestamp, T_c_w, information.allFinite() ? information : Matrix6d::Zero(), false);
-    out.restarted = true;
-    return out;
+    return restarted_at(timestamp, T_c_w, 0.0);
   }
-  predict(dt);
+  PoseFilterStep step;
+  step.timestamp = timestamp;
+  step.F = predict(dt);
+  step.predicted = x_;
 
   const Matrix3d R_m = T_c_w.rotation();
   const Vector3d c_m = -(R_m.transpose() * T_c_w.translation());
   Vector6d z;
-  z.head<3>() = c_m - c_;
-  z.tail<3>() = rotation_log(R_m * R_.transpose());
+  z.head<3>() = c_m - x_.c;
+  z.tail<3>() = rotation_log(R_m * x_.R.transpose());
   const double s2 = options_.measurement_noise_scale * options_.measurement_noise_scale;
-  Matrix6d H = information_on_centre(information, R_) / s2;
+  Matrix6d H = information_on_centre(information, x_.R) / s2;
   // S^-1 = (C P C^T + H^-1)^-1 = H (I + C P C^T H)^-1: no inverse of H, which may be singular.
-  const Matrix12x6d PC = measured_columns(P_);
+  const Matrix12x6d PC = measured_columns(x_.P);
   Matrix6d CPC;
   CPC.topRows<3>() = PC.middleRows<3>(kC);
   CPC.bottomRows<3>() = PC.middleRows<3>(kTheta);
   Matrix6d S_inv = H * (Matrix6d::Identity() + CPC * H).partialPivLu().inverse();
-  out.nis = z.dot(S_inv * z);
-  adapt(dt, out.nis);
-  if (!std::isfinite(out.nis) || out.nis > options_.gate_chi2) {
+  const double nis = z.dot(S_inv * z);
+  adapt(dt, nis);
+  if (!std::isfinite(nis) || nis > options_.gate_chi2) {
     restart(timestamp, T_c_w, information, true);
-    out.restarted = true;
-    if (!std::isfinite(out.nis)) out.nis = 0.0;
-    return out;
+    return restarted_at(timestamp, T_c_w, std::isfinite(nis) ? nis : 0.0);
   }
-  if (out.nis > options_.downweight_chi2) {
+  if (nis > options_.downweight_chi2) {
     // Huber: the measurement counts as a frame at the threshold would.
-    H *= std::sqrt(options_.downweight_chi2 / out.nis);
+    H *= std::sqrt(options_.downweight_chi2 / nis);
     S_inv = H * (Matrix6d::Identity() + CPC * H).partialPivLu().inverse();
   }
   const Matrix12x6d K = PC * S_inv;
   const Eigen::Matrix<double, 12, 1> x = K * z;
-  c_ += x.segment<3>(kC);
-  v_ += x.segment<3>(kV);
-  R_ = rotation_exp(x.segment<3>(kTheta)) * R_;
-  w_ += x.segment<3>(kW);
+  x_.c += x.segment<3>(kC);
+  x_.v += x.segment<3>(kV);
+  x_.R = rotation_exp(x.segment<3>(kTheta)) * x_.R;
+  x_.w += x.segment<3>(kW);
   Matrix12d IKC = Matrix12d::Identity();
   IKC.middleCols<3>(kC) -= K.leftCols<3>();
   IKC.middleCols<3>(kTheta) -= K.rightCols<3>();
-  P_ = IKC * P_;
-  P_ = 0.5 * (P_ + P_.transpose()).eval();
+  x_.P = IKC * x_.P;
+  x_.P = 0.5 * (x_.P + x_.P.transpose()).eval();
   timestamp_ = timestamp;
-  out.T_c_w = pose_of(R_, c_);
+  step.filtered = x_;
+  PoseFilterUpdate out;
+  out.T_c_w = x_.T_c_w();
+  out.nis = nis;
+  out.step = std::move(step);
   return out;
 }
 
 void PoseFilter::move_world(const SE3& W) {
-  if (!started_ || !options_.follow_map) return;
-  const Matrix3d R_W = W.rotation();
-  c_ = W * c_;
-  v_ = R_W * v_;
-  R_ = R_ * R_W.transpose();
-  Matrix12d J = Matrix12d::Identity();
-  J.block<3, 3>(kC, kC) = R_W;
-  J.block<3, 3>(kV, kV) = R_W;
-  P_ = J * P_ * J.transpose();
+  if (started_ && options_.follow_map) x_.move_world(W);
 }
 
 }  // namespace mcslam::optim

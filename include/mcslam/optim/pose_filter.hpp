@@ -84,8 +84,40 @@ struct PoseFilterOptions {
   double adaptive_memory = 0.5;
   /// The most the densities may be multiplied by.
   double max_liveliness = 1000.0;
+  /// Frames the lagged pose (pose_smoother.hpp) stays behind the newest: each frame's pose is
+  /// smoothed with the `lag` frames after it (Rauch-Tung-Striebel over the filter's states) and
+  /// given out when the last of them has come, `lag` frame intervals late (at 30 Hz, 33 ms each).
+  /// 0 (the default): no lagged pose; the immediate pose is given either way. Needs `enabled`.
+  int lag = 0;
 
   std::optional<std::string> check() const;
+};
+
+using Matrix12d = Eigen::Matrix<double, 12, 12>;
+
+/// The filter's state: the camera centre c and velocity v (world), the rotation R_c_w and the
+/// angular velocity w (camera frame), and the covariance P of the error state
+/// [dc, dv, dtheta, dw] (c = c^ + dc, R_c_w = exp(dtheta) R^).
+struct PoseFilterState {
+  Eigen::Vector3d c = Eigen::Vector3d::Zero();
+  Eigen::Vector3d v = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d w = Eigen::Vector3d::Zero();
+  Matrix12d P = Matrix12d::Identity();
+
+  SE3 T_c_w() const;
+  /// The state in a world moved by W (positions of the old world to the new one).
+  void move_world(const SE3& W);
+};
+
+/// One update as a smoother needs it: the prediction from the state before, its transition
+/// matrix F (on the error state), and the state after.
+struct PoseFilterStep {
+  double timestamp = 0.0;
+  bool restarted = false;  ///< not linked to the step before: the state was set afresh
+  PoseFilterState predicted;
+  Matrix12d F = Matrix12d::Identity();
+  PoseFilterState filtered;
 };
 
 /// What the filter did with one measurement.
@@ -93,6 +125,8 @@ struct PoseFilterUpdate {
   SE3 T_c_w;               ///< the filtered pose
   double nis = 0.0;        ///< normalised innovation squared (0 on a restart)
   bool restarted = false;  ///< the state was set to the measurement
+  /// The update's states (with the filter enabled).
+  std::optional<PoseFilterStep> step;
 };
 
 class PoseFilter {
@@ -115,20 +149,17 @@ class PoseFilter {
   bool started() const { return started_; }
 
  private:
-  using Matrix12d = Eigen::Matrix<double, 12, 12>;
   void restart(double timestamp, const SE3& T_c_w, const Matrix6d& information,
                bool keep_velocities);
-  void predict(double dt);
+  /// Moves the state over dt; returns the transition matrix of the error state.
+  Matrix12d predict(double dt);
   void adapt(double dt, double nis);
+  PoseFilterUpdate restarted_at(double timestamp, const SE3& T_c_w, double nis);
 
   PoseFilterOptions options_;
   bool started_ = false;
   double timestamp_ = 0.0;
-  Eigen::Vector3d c_ = Eigen::Vector3d::Zero();      // camera centre, world
-  Eigen::Vector3d v_ = Eigen::Vector3d::Zero();      // its velocity, world
-  Eigen::Matrix3d R_ = Eigen::Matrix3d::Identity();  // R_c_w
-  Eigen::Vector3d w_ = Eigen::Vector3d::Zero();      // angular velocity, camera frame (left)
-  Matrix12d P_ = Matrix12d::Identity();
+  PoseFilterState x_;
   double liveliness_ = 1.0;  // the densities' multiplier
   double mean_nis_ = 6.0;    // the recent innovations' mean
 };
