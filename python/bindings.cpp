@@ -204,6 +204,14 @@ PYBIND11_MODULE(_mcslam, m) {
             return pose_matrix(*r.T_w_c);
           },
           "4 x 4 T_w_c when tracked, else None")
+      .def_property_readonly(
+          "lagged_pose",
+          [](const mcslam::FrameReport& r) -> py::object {
+            if (!r.lagged) return py::none();
+            return py::make_tuple(r.lagged->timestamp, pose_matrix(r.lagged->T_w_c));
+          },
+          "(timestamp, 4 x 4 T_w_c): with tracker.pose_filter.lag > 0, the pose of the frame lag "
+          "tracked frames back, smoothed with the frames since; else None")
       .def_readonly("keyframe", &mcslam::FrameReport::keyframe)
       .def_readonly("relocalised", &mcslam::FrameReport::relocalised)
       .def_readonly("features", &mcslam::FrameReport::features)
@@ -258,6 +266,8 @@ PYBIND11_MODULE(_mcslam, m) {
           [](const LockedSystem& s) { return trajectory_array(s.read(&Api::keyframe_trajectory)); })
       .def("online_trajectory",
            [](const LockedSystem& s) { return trajectory_array(s.read(&Api::online_trajectory)); })
+      .def("lagged_trajectory",
+           [](const LockedSystem& s) { return trajectory_array(s.read(&Api::lagged_trajectory)); })
       .def("map",
            [](const LockedSystem& s) {
              const mcslam::MapSnapshot snap = s.read(&Api::map);

@@ -109,7 +109,10 @@ struct FrameReport {
   State state = State::kNotInitialized;
   bool keyframe = false;
   bool relocalised = false;
-  std::optional<SE3> T_w_c;                 ///< the camera's pose in the world when tracked
+  std::optional<SE3> T_w_c;  ///< the camera's pose in the world when tracked
+  /// With tracker.pose_filter.lag > 0: the pose of the frame `lag` tracked frames back,
+  /// smoothed with the frames since, and that frame's timestamp.
+  std::optional<StampedPose> lagged;
   int features = 0, lines = 0, planes = 0;  ///< extracted
   int matches = 0, inliers = 0;             ///< points
   int objects = 0, dynamic_objects = 0;     ///< boxes this frame, and those found moving
@@ -163,6 +166,9 @@ class System {
   Trajectory keyframe_trajectory() const;
   /// Tracked frames at the poses tracking gave them at the time.
   Trajectory online_trajectory() const;
+  /// The lagged poses as they were given out (FrameReport::lagged), the last `lag` after
+  /// finish(); empty without tracker.pose_filter.lag.
+  Trajectory lagged_trajectory() const;
   MapSnapshot map() const;
   /// The dense map (docs/mapping.md): the floor grid and the occupied voxels' centres (world
   /// frame), as integrated so far (complete after finish()); empty with mapping.enabled off.

@@ -121,7 +121,8 @@ class System(_System):
 
     process(rgb, depth, timestamp, depth_timestamp=None, rgb_order=False) -> Frame
     finish(); trajectory(), unsmoothed_trajectory(), keyframe_trajectory(),
-    online_trajectory() -> N x 8 arrays;
+    online_trajectory(), lagged_trajectory() -> N x 8 arrays (Frame.lagged_pose and
+    lagged_trajectory() with tracker.pose_filter.lag > 0);
     map() -> {"points": N x 3, "lines": N x 6 (two endpoints), "planes": N x 4 (n, d),
     "keyframes": N x 8}; grid() -> {"cells": H x W int8 (nav_msgs: -1 unknown, 0 free,
     100 occupied; row 0 the lowest y), "resolution": metres, "T_world_grid": 4 x 4};

@@ -62,6 +62,30 @@ def test_frame_pose_is_a_4x4_rigid_transform(python_run):
     assert sum(f.keyframe for f in frames) >= len(system.keyframe_trajectory()) >= 1
 
 
+def test_lagged_pose_trails_the_frame_by_the_lag(synth_sequence):
+    """tracker.pose_filter.lag: each frame gives the pose of the frame `lag` tracked frames back
+    (with its own timestamp); lagged_trajectory() has every tracked frame after finish()."""
+    seq = mcslam.Sequence(synth_sequence)
+    lag = 4
+    system = mcslam.System(synth_sequence, {"tracker.pose_filter.enabled": True,
+                                            "tracker.pose_filter.lag": lag}, sequential=True)
+    frames = []
+    for k in range(min(len(seq), 20)):
+        rgb, depth, t, t_depth = seq.load(k, system.camera.depth_factor)
+        frames.append(system.process(rgb, depth, t, t_depth))
+    assert all(f.state == "ok" for f in frames)
+    assert all(f.lagged_pose is None for f in frames[:lag])
+    for k in range(lag, len(frames)):
+        t, pose = frames[k].lagged_pose
+        assert t == frames[k - lag].timestamp
+        assert pose.shape == (4, 4) and np.allclose(pose[3], [0, 0, 0, 1])
+        # Smoothed, not the immediate pose, and near it (millimetres on the render).
+        assert np.linalg.norm(pose[:3, 3] - frames[k - lag].pose[:3, 3]) < 0.02
+    system.finish()
+    lagged = system.lagged_trajectory()
+    assert np.array_equal(lagged[:, 0], system.online_trajectory()[:, 0])
+
+
 def test_map_as_arrays(python_run):
     _, system, _ = python_run
     m = system.map()

@@ -220,6 +220,7 @@ FrameReport System::process(const cv::Mat& rgb, const cv::Mat& depth, double tim
   out.keyframe = r.keyframe;
   out.relocalised = r.relocalised;
   out.T_w_c = r.T_w_c;
+  out.lagged = r.lagged;
   out.features = r.features;
   out.lines = r.lines;
   out.planes = r.planes;
@@ -238,6 +239,7 @@ Trajectory System::trajectory() const { return system_->trajectory(); }
 Trajectory System::unsmoothed_trajectory() const { return system_->unsmoothed_trajectory(); }
 Trajectory System::keyframe_trajectory() const { return system_->keyframe_trajectory(); }
 Trajectory System::online_trajectory() const { return system_->online_trajectory(); }
+Trajectory System::lagged_trajectory() const { return system_->lagged_trajectory(); }
 
 OccupancyGridSnapshot System::grid() const {
   OccupancyGridSnapshot out;

@@ -560,7 +560,8 @@ struct RunTrajectories {
   optim::TrajectorySmoothingReport smoothing;
 };
 
-/// trajectory.txt, trajectory_unsmoothed.txt, trajectory_online.txt, keyframes.txt, timings.csv.
+/// trajectory.txt, trajectory_unsmoothed.txt, trajectory_online.txt, trajectory_lagged.txt
+/// (with a lag), keyframes.txt, timings.csv.
 RunTrajectories write_trajectories(const std::filesystem::path& out, const slam::System& system,
                                    const std::string& note, const FrameRecorder& recorder,
                                    bool realtime) {
@@ -571,6 +572,9 @@ RunTrajectories write_trajectories(const std::filesystem::path& out, const slam:
   io::write_tum_trajectory((out / "trajectory_unsmoothed.txt").string(), t.unsmoothed, note);
   io::write_tum_trajectory((out / "trajectory_online.txt").string(), system.online_trajectory(),
                            note);
+  if (system.options().tracker.pose_filter.lag > 0)
+    io::write_tum_trajectory((out / "trajectory_lagged.txt").string(), system.lagged_trajectory(),
+                             note);
   io::write_file_atomic((out / "keyframes.txt").string(),
                         format_tum_keyframes(system.keyframe_trajectory()));
   io::write_file_atomic((out / "timings.csv").string(), recorder.timings_csv(realtime));
@@ -680,6 +684,9 @@ void add_eval(nlohmann::json& summary, const PreparedRun& run, const slam::Syste
     const Trajectory online = system.online_trajectory();
     if (!online.empty())
       summary["online_ate_rmse_m"] = eval::evaluate(*run.groundtruth, online).ate.translation.rmse;
+    const Trajectory lagged = system.lagged_trajectory();
+    if (!lagged.empty())
+      summary["lagged_ate_rmse_m"] = eval::evaluate(*run.groundtruth, lagged).ate.translation.rmse;
   } catch (const InputError& e) {
     summary["eval_error"] = e.what();
   }
@@ -762,6 +769,9 @@ nlohmann::json run_frames(const RunRequest& request, PreparedRun& run, RunStatus
   if (request.realtime)
     summary["realtime"] = realtime_json(observers.recorder, end.streamed.offered, end.streamed.done,
                                         input.dropped().size());
+  if (const int lag = run.config.options.tracker.pose_filter.lag; lag > 0)
+    summary["lagged_pose"] =
+        lagged_pose_json(observers.recorder, lag, system.lagged_trajectory().size());
   const std::string viewer_failure = viewer ? viewer->failure() : std::string();
   add_speed(summary, end, observers.recorder, system, run.config.options.sequential, control,
             viewer, viewer_failure);

@@ -71,6 +71,10 @@ void FrameRecorder::on_frame(const FrameEvent& e) {
   load_ms.push_back(e.wait_ms);
   dropped_before.push_back(e.dropped_before);
   if (e.latency_ms) latency_ms.push_back(*e.latency_ms);
+  if (r.lagged) {
+    lagged_delay_ms.push_back(1000.0 * (r.timestamp - r.lagged->timestamp));
+    if (e.latency_ms) lagged_latency_ms.push_back(lagged_delay_ms.back() + *e.latency_ms);
+  }
   tracked += r.state == slam::TrackingState::kOk ? 1 : 0;
   lost += r.state == slam::TrackingState::kLost ? 1 : 0;
   relocalised += r.relocalised ? 1 : 0;

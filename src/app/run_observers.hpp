@@ -63,6 +63,9 @@ class FrameRecorder : public FrameObserver {
   StageTable stage_table;
   std::map<std::string, std::vector<double>> stage_samples;
   std::vector<double> tracking_ms, load_ms, latency_ms, reloc_query_ms;
+  /// Per lagged pose given out (tracker.pose_filter.lag): how far its frame's time lies behind
+  /// the frame that gave it out, and in real time its latency (that delay plus the frame's).
+  std::vector<double> lagged_delay_ms, lagged_latency_ms;
   std::vector<std::size_t> dropped_before;
   std::vector<float> rss_mib;
   nlohmann::json reloc_events = nlohmann::json::array();

@@ -156,16 +156,32 @@ nlohmann::json dynamics_json(const ObjectsRecorder& objects, const slam::System&
 nlohmann::json realtime_json(const FrameRecorder& recorder, std::size_t offered,
                              std::size_t processed, std::size_t dropped) {
   const SampleStats latency = compute_stats(recorder.latency_ms);
-  return {{"enabled", true},
-          {"frames_offered", offered},
-          {"frames_processed", processed},
-          {"frames_dropped", dropped},
-          {"processed_ratio", offered == 0 ? 0.0 : static_cast<double>(processed) / offered},
-          // Tracked frames over the frames the camera delivered: dropped frames count as missing.
-          {"coverage", offered == 0 ? 0.0 : static_cast<double>(recorder.tracked) / offered},
-          {"latency_median_ms", latency.median},
-          {"latency_p95_ms", latency.p95},
-          {"latency_max_ms", latency.max}};
+  nlohmann::json out = {
+      {"enabled", true},
+      {"frames_offered", offered},
+      {"frames_processed", processed},
+      {"frames_dropped", dropped},
+      {"processed_ratio", offered == 0 ? 0.0 : static_cast<double>(processed) / offered},
+      // Tracked frames over the frames the camera delivered: dropped frames count as missing.
+      {"coverage", offered == 0 ? 0.0 : static_cast<double>(recorder.tracked) / offered},
+      {"latency_median_ms", latency.median},
+      {"latency_p95_ms", latency.p95},
+      {"latency_max_ms", latency.max}};
+  if (!recorder.lagged_latency_ms.empty()) {
+    // The lagged pose's: its frame's time to the moment it was given out.
+    const SampleStats lagged = compute_stats(recorder.lagged_latency_ms);
+    out["lagged_latency_median_ms"] = lagged.median;
+    out["lagged_latency_p95_ms"] = lagged.p95;
+  }
+  return out;
+}
+
+nlohmann::json lagged_pose_json(const FrameRecorder& recorder, int lag, std::size_t poses) {
+  const SampleStats delay = compute_stats(recorder.lagged_delay_ms);
+  return {{"lag_frames", lag},
+          {"poses", poses},
+          {"delay_median_ms", delay.median},
+          {"delay_p95_ms", delay.p95}};
 }
 
 nlohmann::json stages_json(const FrameRecorder& recorder) {

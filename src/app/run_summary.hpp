@@ -40,6 +40,9 @@ nlohmann::json dynamics_json(const ObjectsRecorder& objects, const slam::System&
 /// Frames offered, processed and dropped, and the latency of a real-time run ("realtime").
 nlohmann::json realtime_json(const FrameRecorder& recorder, std::size_t offered,
                              std::size_t processed, std::size_t dropped);
+/// The lagged pose (tracker.pose_filter.lag > 0, "lagged_pose"): the lag, the poses given out,
+/// and how far behind their frames' times they were given out (median, p95).
+nlohmann::json lagged_pose_json(const FrameRecorder& recorder, int lag, std::size_t poses);
 
 /// Each tracking stage's times, the per-frame total and the image loads ("stages").
 nlohmann::json stages_json(const FrameRecorder& recorder);

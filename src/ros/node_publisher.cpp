@@ -126,6 +126,10 @@ FramePublisher::FramePublisher(Transport& transport, const NodeOptions& options)
 void FramePublisher::on_frame(const slam::FrameResult& r, const slam::PreparedImages& images,
                               const slam::System& system) {
   map_.update(system.occupancy(), r.timestamp);
+  if (r.lagged) {
+    transport_.publish_lagged_pose(r.lagged->timestamp, r.lagged->T_w_c);
+    ++lagged_poses_;
+  }
   if (r.T_w_c) {
     publish_pose(r.timestamp, *r.T_w_c);
     if (path_watch_.elapsed_ms() > 200.0) {
@@ -158,6 +162,7 @@ void FramePublisher::on_end(const slam::System& system, nlohmann::json& summary)
                         {"floor_frame", options_.floor_frame},
                         {"odom_frame", options_.odom_frame},
                         {"poses_published", poses_},
+                        {"lagged_poses_published", lagged_poses_},
                         {"odom_lookup_failures", odom_failures_},
                         {"people_arrays_published", people_arrays_}};
   map_.report(ros);

@@ -94,7 +94,7 @@ class FramePublisher {
   Stopwatch cloud_watch_, path_watch_, warn_watch_;
   bool cloud_sent_ = false;
   bool people_shown_ = false;
-  std::size_t poses_ = 0, odom_failures_ = 0, people_arrays_ = 0;
+  std::size_t poses_ = 0, lagged_poses_ = 0, odom_failures_ = 0, people_arrays_ = 0;
   MapPublisher map_;
 };
 

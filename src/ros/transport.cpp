@@ -114,7 +114,8 @@ struct Transport::Impl {
   message_filters::Subscriber<Image> rgb_sub, depth_sub;
   std::unique_ptr<message_filters::Synchronizer<Policy>> sync;
   ::ros::Subscriber info_sub;
-  ::ros::Publisher pose_pub, path_pub, cloud_pub, voxel_pub, image_pub, grid_pub, people_pub;
+  ::ros::Publisher pose_pub, lagged_pub, path_pub, cloud_pub, voxel_pub, image_pub, grid_pub,
+      people_pub;
   std::unique_ptr<tf2_ros::TransformBroadcaster> broadcaster;
   std::unique_ptr<tf2_ros::StaticTransformBroadcaster> static_broadcaster;
   std::optional<SE3> sent_T_map_floor;  // the static tf map -> floor last sent
@@ -239,6 +240,19 @@ std::string Transport::publish_pose(double timestamp, const SE3& T) {
   }
   d.broadcaster->sendTransform(tf);
   return {};
+}
+
+void Transport::publish_lagged_pose(double timestamp, const SE3& T) {
+  Impl& d = *impl_;
+  // Advertised with the first lagged pose: the topic exists only in a run with a lag.
+  if (!d.lagged_pub)
+    d.lagged_pub =
+        d.nh.advertise<geometry_msgs::PoseStamped>(d.options.prefix + "/pose_lagged", 50);
+  geometry_msgs::PoseStamped pose;
+  pose.header.stamp = ::ros::Time(timestamp);
+  pose.header.frame_id = d.options.map_frame;
+  pose.pose = pose_of(T);
+  d.lagged_pub.publish(pose);
 }
 
 void Transport::publish_path() {

@@ -273,6 +273,8 @@ FrameResult System::process(const PreparedImages& images, double timestamp,
     record.T_c_ref = outcome.T_c_ref;
     record.T_c_w = outcome.T_c_w_online;
   }
+  if (outcome.lagged)
+    result.lagged = StampedPose{outcome.lagged->timestamp, outcome.lagged->T_c_w.inverse()};
   if (outcome.keyframe) {
     result.keyframe = true;
     ++keyframes_made_;
@@ -302,7 +304,7 @@ FrameResult System::process(const PreparedImages& images, double timestamp,
       mapper_->enqueue(std::move(*outcome.keyframe));
     }
   }
-  add_record(record);
+  add_record(record, result.lagged);
   return result;
 }
 
@@ -502,6 +504,11 @@ void System::finish() {
   if (finished_) return;
   finished_ = true;
   stop_threads();
+  {
+    const std::vector<optim::LaggedPose> last = tracker_->flush_lagged_poses();
+    std::lock_guard<std::mutex> guard(records_mutex_);
+    for (const optim::LaggedPose& p : last) lagged_.push_back({p.timestamp, p.T_c_w.inverse()});
+  }
   throw_if_background_failed();
   if (options_.mapper.global_ba_iterations > 0 && !options_.localize)
     mapper_->global_bundle_adjustment();  // the dense map is corrected after it
@@ -514,9 +521,10 @@ void System::finish() {
   }
 }
 
-void System::add_record(const FrameRecord& record) {
+void System::add_record(const FrameRecord& record, const std::optional<StampedPose>& lagged) {
   std::lock_guard<std::mutex> guard(records_mutex_);
   records_.push_back(record);
+  if (lagged) lagged_.push_back(*lagged);
 }
 
 std::vector<System::FrameRecord> System::records() const {
@@ -568,6 +576,11 @@ Trajectory System::online_trajectory() const {
   for (const FrameRecord& r : records())
     if (r.tracked) out.push_back({r.timestamp, r.T_c_w.inverse()});
   return out;
+}
+
+Trajectory System::lagged_trajectory() const {
+  std::lock_guard<std::mutex> guard(records_mutex_);
+  return lagged_;
 }
 
 Trajectory System::keyframe_trajectory() const {

@@ -211,7 +211,13 @@ Tracker::Tracker(const PinholeCamera& camera, const TrackerOptions& options, con
       vocabulary_(std::move(vocabulary)),
       direct_levels_up_(direct_levels_up),
       pose_filter_(options.pose_filter),
-      objects_(camera, options.dynamics) {}
+      objects_(camera, options.dynamics) {
+  if (options.pose_filter.lag > 0) pose_smoother_.emplace(options.pose_filter.lag);
+}
+
+std::vector<optim::LaggedPose> Tracker::flush_lagged_poses() {
+  return pose_smoother_ ? pose_smoother_->flush() : std::vector<optim::LaggedPose>{};
+}
 
 TrackingOutcome Tracker::track(const Frame& frame, bool mapper_idle, std::size_t mapper_queue,
                                StageTimes* times) {
@@ -349,7 +355,10 @@ void Tracker::accept(const Frame& frame, const Associations& assoc, const SE3& T
   // pose, so that the filter never feeds back into what it filters. A relocalised pose is a jump
   // the motion model must not smooth away.
   if (out.relocalised) pose_filter_.reset();
-  out.T_c_w_online = pose_filter_.update(frame.timestamp, T_c_w, pose_information_).T_c_w;
+  const optim::PoseFilterUpdate filtered =
+      pose_filter_.update(frame.timestamp, T_c_w, pose_information_);
+  out.T_c_w_online = filtered.T_c_w;
+  if (pose_smoother_ && filtered.step) out.lagged = pose_smoother_->add(*filtered.step);
   if (const auto T_last = last_frame_pose(); T_last && state_ == TrackingState::kOk) {
     previous_velocity_ = velocity_;
     previous_velocity_dt_ = velocity_dt_;
@@ -395,6 +404,7 @@ TrackingOutcome Tracker::initialize(const Frame& frame) {
   out.state = state_;
   out.T_c_w = SE3();
   out.T_c_w_online = SE3();
+  if (pose_smoother_) out.lagged = pose_smoother_->add_unfiltered(frame.timestamp, SE3());
   // Nothing tells yet which object moves: the map starts from the features outside the boxes
   // when they are enough, else from all.
   objects_.prepare(frame, std::nullopt);
@@ -455,6 +465,7 @@ void Tracker::follow_map() {
     for (Eigen::Vector3d& p : track) p = W * p;
   objects_.move_world(W);
   pose_filter_.move_world(W);
+  if (pose_smoother_ && options_.pose_filter.follow_map) pose_smoother_->move_world(W);
 }
 
 std::optional<SE3> Tracker::last_frame_pose() const {

@@ -76,7 +76,10 @@ struct FrameResult {
   int line_inliers = 0;
   int plane_inliers = 0;
   std::optional<SE3> T_w_c;  // when tracked
-  StageTimes times;          // what the caller waited for, per stage
+  /// With tracker.pose_filter.lag > 0: an earlier frame's pose, smoothed with the frames since
+  /// (its own timestamp; the frame `lag` tracked frames back).
+  std::optional<StampedPose> lagged;
+  StageTimes times;  // what the caller waited for, per stage
   /// The frame's features (undistorted pixels) and what each one is, for overlays.
   std::shared_ptr<const features::FrameFeatures> frame_features;
   std::vector<FeatureLabel> point_labels;
@@ -197,6 +200,9 @@ class System {
   Trajectory keyframe_trajectory() const;
   /// Tracked frames at the poses tracking gave them at the time (what a robot saw online).
   Trajectory online_trajectory() const;
+  /// The lagged poses (tracker.pose_filter.lag > 0; empty otherwise) as they were given out,
+  /// and after finish() the last `lag` too.
+  Trajectory lagged_trajectory() const;
   /// The map (read it under map().read_lock() while the system runs threaded).
   const map::Map& map() const { return *map_; }
   /// Stage times of each processed keyframe in the mapper.
@@ -255,6 +261,7 @@ class System {
   bool frame_waits_for_boxes() const;
   mutable std::mutex records_mutex_;  // process() appends; the trajectory readers copy
   std::vector<FrameRecord> records_;
+  Trajectory lagged_;                  // under records_mutex_
   std::atomic<int> pose_failures_{0};  // the tracker's count, published after each frame
   std::uint64_t next_frame_id_ = 0;
   /// What is known of the camera's motion around the frame (depth time, rolling shutter) and
@@ -273,7 +280,7 @@ class System {
                        const TrackingOutcome& outcome);
   /// The boxes of the last frame's moving objects (for the next frame's feature budget).
   void remember_moving_regions(const FrameResult& result);
-  void add_record(const FrameRecord& record);
+  void add_record(const FrameRecord& record, const std::optional<StampedPose>& lagged = {});
   std::vector<FrameRecord> records() const;
   /// Lets the mapper and the loop closer finish their queues and stops their threads.
   void stop_threads();

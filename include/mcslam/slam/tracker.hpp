@@ -17,6 +17,7 @@
 #include "mcslam/map/map.hpp"
 #include "mcslam/optim/constraint_residual.hpp"
 #include "mcslam/optim/pose_filter.hpp"
+#include "mcslam/optim/pose_smoother.hpp"
 #include "mcslam/place/vocabulary.hpp"
 #include "mcslam/slam/dynamics.hpp"
 #include "mcslam/slam/frame.hpp"
@@ -90,6 +91,9 @@ struct TrackingOutcome {
   /// The pose fused with the motion model (tracker.pose_filter; T_c_w when it is off): what
   /// process() returns and trajectory_online.txt holds.
   SE3 T_c_w_online;
+  /// With tracker.pose_filter.lag > 0: the pose of the frame `lag` poses back, smoothed with the
+  /// frames since (pose_smoother.hpp); nullopt until there is one.
+  std::optional<optim::LaggedPose> lagged;
   map::KeyFrameId reference = map::kNoId;  // keyframe the pose is stored relative to
   SE3 T_c_ref;                             // pose relative to that keyframe
   int matches = 0;                         // points matched (landmarks and depth points)
@@ -138,6 +142,9 @@ class Tracker {
   Eigen::Vector3d angular_velocity() const;
   /// Pose optimisations that found no usable solution (each left its frame's estimate failed).
   int solver_failures() const { return solver_failures_; }
+  /// The lagged poses not given out yet (the last `lag`), smoothed with what came: the end of a
+  /// run. Empty without a lag.
+  std::vector<optim::LaggedPose> flush_lagged_poses();
 
  private:
   struct Match {
@@ -318,6 +325,7 @@ class Tracker {
   // The information of the frame's last pose optimisation, and the filter it goes to.
   Matrix6d pose_information_ = Matrix6d::Zero();
   optim::PoseFilter pose_filter_;
+  std::optional<optim::PoseSmoother> pose_smoother_;  // with a lag
   // Local map of the current frame.
   map::KeyFrameId reference_ = map::kNoId;
   LocalMap local_;
