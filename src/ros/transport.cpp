@@ -178,6 +178,10 @@ Transport::Transport(const NodeOptions& options, Callbacks callbacks)
   if (!options.topics.camera_info.empty())
     d.info_sub = d.nh.subscribe(options.topics.camera_info, 1, &Impl::on_info, &d);
   d.pose_pub = d.nh.advertise<geometry_msgs::PoseStamped>(options.prefix + "/pose", 50);
+  // Advertised in every run, so that a subscriber is connected before the first lagged pose (a
+  // ROS 1 publisher drops what it sends before a subscriber's connection is made); messages
+  // come only with tracker.pose_filter.lag > 0.
+  d.lagged_pub = d.nh.advertise<geometry_msgs::PoseStamped>(options.prefix + "/pose_lagged", 50);
   d.path_pub = d.nh.advertise<nav_msgs::Path>(options.prefix + "/path", 2, true);
   d.cloud_pub = d.nh.advertise<sensor_msgs::PointCloud2>(options.prefix + "/map_points", 1, true);
   d.voxel_pub =
@@ -244,10 +248,6 @@ std::string Transport::publish_pose(double timestamp, const SE3& T) {
 
 void Transport::publish_lagged_pose(double timestamp, const SE3& T) {
   Impl& d = *impl_;
-  // Advertised with the first lagged pose: the topic exists only in a run with a lag.
-  if (!d.lagged_pub)
-    d.lagged_pub =
-        d.nh.advertise<geometry_msgs::PoseStamped>(d.options.prefix + "/pose_lagged", 50);
   geometry_msgs::PoseStamped pose;
   pose.header.stamp = ::ros::Time(timestamp);
   pose.header.frame_id = d.options.map_frame;

@@ -44,9 +44,8 @@ class Transport {
   /// camera_frame is looked up in tf at the stamp, waiting up to odom_timeout_s. Returns why no
   /// tf was sent (the lookup failed), or "".
   std::string publish_pose(double timestamp, const SE3& T_w_c);
-  /// A lagged pose (tracker.pose_filter.lag) on <prefix>/pose_lagged (advertised with the first),
-  /// stamped with its own frame's stamp (no tf: map_frame -> camera_frame is the immediate
-  /// pose's).
+  /// A lagged pose (tracker.pose_filter.lag) on <prefix>/pose_lagged, stamped with its own
+  /// frame's stamp (no tf: map_frame -> camera_frame is the immediate pose's).
   void publish_lagged_pose(double timestamp, const SE3& T_w_c);
   void publish_path();
   bool image_wanted() const;

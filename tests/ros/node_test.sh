@@ -10,7 +10,9 @@
 #     -> camera is sent.
 #  2. an image it cannot use: one error, exit 1, the frames before written; tf map -> camera.
 #  3. that bag again with --odom-frame odom but no odom tf, and --no-occupancy: poses but no map
-#     -> odom (the failed lookups warned about and counted in summary.json), no map topics.
+#     -> odom (the failed lookups warned about and counted in summary.json), no map topics; with
+#     tracker.pose_filter.lag 1, each frame after the first gives the frame before's lagged pose
+#     on /mcslam/pose_lagged, stamped with that frame's stamp.
 # Everything started here is stopped (process groups), also on failure.
 set -euo pipefail
 MCSLAM=$1; TOOL=$2; WORK=$3
@@ -144,8 +146,9 @@ echo "bad image: $(grep '^mcslam: error: ' "$WORK/node_bad.log")"
 
 # An odom frame without its tf, and no dense map: poses, but neither map -> odom (each failed
 # lookup warned about, throttled, and counted) nor map -> camera, and none of the map topics.
+printf 'tracker:\n  pose_filter:\n    enabled: true\n    lag: 1\n' > "$WORK/lag.yaml"
 setsid "$MCSLAM" ros --output "$WORK/node_no_odom" --sequential --keep-all --odom-frame odom \
-  --no-occupancy > "$WORK/node_no_odom.log" 2>&1 &
+  --no-occupancy -c "$WORK/lag.yaml" > "$WORK/node_no_odom.log" 2>&1 &
 node=$!
 groups+=($node)
 "$TOOL" play "$WORK/bad.bag" "$WORK/poses_no_odom.txt" "$WORK/topics_no_odom.txt" 3 30 ||
@@ -167,6 +170,11 @@ grep -q '^mcslam ros: 3 of 3 poses had no tf odom -> camera' "$WORK/node_no_odom
 python3 -c 'import json, sys; r = json.load(open(sys.argv[1]))["ros"]
 sys.exit(0 if r["odom_lookup_failures"] == 3 and r["grids_published"] == 0 else 1)' \
   "$WORK/node_no_odom/summary.json" || fail "summary.json ros: not 3 failed lookups, or a grid"
+# Frames 0, 1, 2 tracked (the bad image ends the run, which gives out no last lagged pose): the
+# lagged poses of frames 0 and 1.
+[ "$(cut -d' ' -f1 "$WORK/poses_no_odom.txt.lagged")" = "$(head -2 "$WORK/poses_no_odom.txt" |
+  cut -d' ' -f1)" ] || fail "the lagged poses are not those of frames 0 and 1"
+if [ -e "$WORK/poses.txt.lagged" ]; then fail "lagged poses without a lag"; fi
 echo "no odom tf: $(grep -c '^mcslam ros: warning: no tf' "$WORK/node_no_odom.log") warning(s);" \
   "$(grep '^mcslam ros: 3 of 3' "$WORK/node_no_odom.log")"
 echo "PASS"

@@ -81,7 +81,7 @@ int mutate(const std::string& in, const std::string& out, const std::string& wha
 /// What the node publishes, as the player receives it (callbacks on the spinner's thread).
 struct Recorder {
   std::mutex mutex;
-  std::vector<geometry_msgs::PoseStamped> poses;
+  std::vector<geometry_msgs::PoseStamped> poses, lagged;
   std::vector<geometry_msgs::TransformStamped> map_odom;
   std::set<std::string> seen;
   std::vector<ros::Subscriber> subs;
@@ -128,6 +128,12 @@ struct Recorder {
           poses.push_back(*p);
           seen.insert("/mcslam/pose");
         }));
+    subs.push_back(nh.subscribe<geometry_msgs::PoseStamped>(
+        "/mcslam/pose_lagged", 1000, [this](const geometry_msgs::PoseStampedConstPtr& p) {
+          std::lock_guard lock(mutex);
+          lagged.push_back(*p);
+          seen.insert("/mcslam/pose_lagged");
+        }));
     mark_on<nav_msgs::Path>(nh, "/mcslam/path");
     mark_on<sensor_msgs::PointCloud2>(nh, "/mcslam/map_points");
     mark_on<sensor_msgs::Image>(nh, "/mcslam/image");
@@ -145,17 +151,24 @@ struct Recorder {
           topic, 100, [this, topic](const tf2_msgs::TFMessageConstPtr& tf) { on_tf(tf, topic); }));
   }
 
-  /// Writes the files; returns the number of poses received.
-  std::size_t write(const std::string& poses_path, const std::string& topics_path,
-                    const std::string& map_odom_path) {
-    std::lock_guard lock(mutex);
-    std::ofstream out(poses_path);
+  static void write_poses(const std::string& path,
+                          const std::vector<geometry_msgs::PoseStamped>& list) {
+    std::ofstream out(path);
     out.precision(9);
     out << std::fixed;
-    for (const auto& p : poses)
+    for (const auto& p : list)
       out << p.header.stamp.toSec() << ' ' << p.pose.position.x << ' ' << p.pose.position.y << ' '
           << p.pose.position.z << ' ' << p.pose.orientation.x << ' ' << p.pose.orientation.y << ' '
           << p.pose.orientation.z << ' ' << p.pose.orientation.w << '\n';
+  }
+
+  /// Writes the files (the lagged poses, if any, to POSES.lagged); returns the number of poses
+  /// received.
+  std::size_t write(const std::string& poses_path, const std::string& topics_path,
+                    const std::string& map_odom_path) {
+    std::lock_guard lock(mutex);
+    write_poses(poses_path, poses);
+    if (!lagged.empty()) write_poses(poses_path + ".lagged", lagged);
     std::ofstream topics(topics_path);
     for (const auto& name : seen) topics << name << '\n';
     if (map_odom_path.empty()) return poses.size();
