@@ -301,7 +301,27 @@ Tracker::FirstEstimate Tracker::first_estimate(const Frame& frame, Associations&
   return first;
 }
 
+bool Tracker::track_without_velocity(const Frame& frame, Associations& assoc, SE3& T_c_w) {
+  Associations by_descriptor(frame);
+  SE3 T_by_descriptor = T_c_w;
+  const bool descriptor_ok = track_reference_keyframe(frame, by_descriptor, T_by_descriptor);
+  bool ok = false;
+  if (const std::optional<SE3> T_last = last_frame_pose())
+    ok = track_last_frame(frame, *T_last, assoc, T_c_w);
+  const auto support = [](const Associations& a) {
+    return a.inlier_points(false) + a.inlier_lines(false);
+  };
+  if (descriptor_ok && (!ok || support(by_descriptor) > support(assoc))) {
+    assoc = std::move(by_descriptor);
+    T_c_w = T_by_descriptor;
+    return true;
+  }
+  if (!ok) assoc.clear();
+  return ok;
+}
+
 bool Tracker::track_from_last_frame(const Frame& frame, Associations& assoc, SE3& T_c_w) {
+  if (!velocity_) return track_without_velocity(frame, assoc, T_c_w);
   bool ok = false;
   if (const std::optional<SE3> T_last = last_frame_pose()) {
     ok = track_last_frame(frame, predict(frame, *T_last), assoc, T_c_w);
