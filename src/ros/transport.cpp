@@ -147,6 +147,18 @@ struct Transport::Impl {
   }
 };
 
+namespace {
+
+geometry_msgs::PoseStamped stamped_pose(double timestamp, const SE3& T, const std::string& frame) {
+  geometry_msgs::PoseStamped pose;
+  pose.header.stamp = ::ros::Time(timestamp);
+  pose.header.frame_id = frame;
+  pose.pose = pose_of(T);
+  return pose;
+}
+
+}  // namespace
+
 bool Transport::init(const NodeOptions& options, const std::function<bool()>& stop) {
   ::ros::init(::ros::M_string{}, "mcslam",
               ::ros::init_options::NoSigintHandler | ::ros::init_options::AnonymousName);
@@ -216,10 +228,7 @@ void Transport::shutdown() {
 
 std::string Transport::publish_pose(double timestamp, const SE3& T) {
   Impl& d = *impl_;
-  geometry_msgs::PoseStamped pose;
-  pose.header.stamp = ::ros::Time(timestamp);
-  pose.header.frame_id = d.options.map_frame;
-  pose.pose = pose_of(T);
+  const geometry_msgs::PoseStamped pose = stamped_pose(timestamp, T, d.options.map_frame);
   d.pose_pub.publish(pose);
   d.path.poses.push_back(pose);
   d.path.header.stamp = pose.header.stamp;
@@ -247,12 +256,7 @@ std::string Transport::publish_pose(double timestamp, const SE3& T) {
 }
 
 void Transport::publish_lagged_pose(double timestamp, const SE3& T) {
-  Impl& d = *impl_;
-  geometry_msgs::PoseStamped pose;
-  pose.header.stamp = ::ros::Time(timestamp);
-  pose.header.frame_id = d.options.map_frame;
-  pose.pose = pose_of(T);
-  d.lagged_pub.publish(pose);
+  impl_->lagged_pub.publish(stamped_pose(timestamp, T, impl_->options.map_frame));
 }
 
 void Transport::publish_path() {
