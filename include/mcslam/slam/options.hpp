@@ -120,8 +120,9 @@ struct TrackerOptions {
 
   optim::PoseOptimizerOptions pose;
   /// The online pose (what process() returns, trajectory_online.txt): the frame's pose fused with
-  /// the motion model (optim/pose_filter.hpp) when enabled. Tracking, keyframes and the final
-  /// trajectory always go on from the frame's own pose.
+  /// the motion model (optim/pose_filter.hpp) when enabled, and with a lag the lagged pose too
+  /// (optim/pose_smoother.hpp). Tracking, keyframes and the final trajectory always go on from
+  /// the frame's own pose.
   optim::PoseFilterOptions pose_filter;
   /// Dynamic objects (Algorithm 1) and moving constraints (Algorithm 2), when frames carry
   /// detections.
