@@ -32,8 +32,8 @@ using Matrix3d = Eigen::Matrix3d;
 using Vector3d = Eigen::Vector3d;
 using Matrix12x6d = Eigen::Matrix<double, 12, 6>;
 
-// The state's blocks: camera centre, its velocity, rotation, angular velocity.
-constexpr int kC = 0, kV = 3, kTheta = 6, kW = 9;
+constexpr int kC = PoseFilterState::kC, kV = PoseFilterState::kV, kTheta = PoseFilterState::kTheta,
+              kW = PoseFilterState::kW;
 
 Matrix3d rotation_exp(const Vector3d& phi) { return so3_exp(phi).toRotationMatrix(); }
 
@@ -62,6 +62,24 @@ Matrix12x6d measured_columns(const Matrix12d& P) {
 }  // namespace
 
 SE3 PoseFilterState::T_c_w() const { return pose_of(R, c); }
+
+PoseFilterState PoseFilterState::plus(const Vector12d& d) const {
+  PoseFilterState x = *this;
+  x.c += d.segment<3>(kC);
+  x.v += d.segment<3>(kV);
+  x.R = rotation_exp(d.segment<3>(kTheta)) * x.R;
+  x.w += d.segment<3>(kW);
+  return x;
+}
+
+Vector12d PoseFilterState::minus(const PoseFilterState& b) const {
+  Vector12d d;
+  d.segment<3>(kC) = c - b.c;
+  d.segment<3>(kV) = v - b.v;
+  d.segment<3>(kTheta) = rotation_log(R * b.R.transpose());
+  d.segment<3>(kW) = w - b.w;
+  return d;
+}
 
 void PoseFilterState::move_world(const SE3& W) {
   const Matrix3d R_W = W.rotation();
@@ -192,11 +210,7 @@ PoseFilterUpdate PoseFilter::update(double timestamp, const SE3& T_c_w,
     S_inv = H * (Matrix6d::Identity() + CPC * H).partialPivLu().inverse();
   }
   const Matrix12x6d K = PC * S_inv;
-  const Eigen::Matrix<double, 12, 1> x = K * z;
-  x_.c += x.segment<3>(kC);
-  x_.v += x.segment<3>(kV);
-  x_.R = rotation_exp(x.segment<3>(kTheta)) * x_.R;
-  x_.w += x.segment<3>(kW);
+  x_ = x_.plus(K * z);
   Matrix12d IKC = Matrix12d::Identity();
   IKC.middleCols<3>(kC) -= K.leftCols<3>();
   IKC.middleCols<3>(kTheta) -= K.rightCols<3>();

@@ -4,42 +4,14 @@
 
 namespace mcslam::optim {
 
-namespace {
-
-using Vector12d = Eigen::Matrix<double, 12, 1>;
-
-// The error state's blocks, as in pose_filter.cpp: centre, velocity, rotation, angular velocity.
-constexpr int kC = 0, kV = 3, kTheta = 6, kW = 9;
-
-/// a (-) b on the error state.
-Vector12d difference(const PoseFilterState& a, const PoseFilterState& b) {
-  Vector12d d;
-  d.segment<3>(kC) = a.c - b.c;
-  d.segment<3>(kV) = a.v - b.v;
-  d.segment<3>(kTheta) = so3_log(Eigen::Quaterniond(a.R * b.R.transpose()));
-  d.segment<3>(kW) = a.w - b.w;
-  return d;
-}
-
-/// x (+) d on the error state.
-PoseFilterState plus(PoseFilterState x, const Vector12d& d) {
-  x.c += d.segment<3>(kC);
-  x.v += d.segment<3>(kV);
-  x.R = so3_exp(d.segment<3>(kTheta)).toRotationMatrix() * x.R;
-  x.w += d.segment<3>(kW);
-  return x;
-}
-
-}  // namespace
-
 PoseSmoother::PoseSmoother(int lag) : lag_(lag < 1 ? 1 : lag) {}
 
-std::vector<PoseFilterState> PoseSmoother::smoothed(std::size_t oldest) const {
+std::vector<PoseFilterState> PoseSmoother::smoothed() const {
   std::vector<PoseFilterState> out(window_.size());
   if (window_.empty()) return out;
   std::size_t j = window_.size() - 1;
   out[j] = window_[j].filtered;
-  while (j > oldest) {
+  while (j > 0) {
     --j;
     const PoseFilterStep& next = window_[j + 1];
     const PoseFilterState& x = window_[j].filtered;
@@ -49,7 +21,7 @@ std::vector<PoseFilterState> PoseSmoother::smoothed(std::size_t oldest) const {
     }
     // G = P F^T (P^-)^-1; P and P^- are symmetric, so G^T = (P^-)^-1 F P.
     const Matrix12d G = next.predicted.P.ldlt().solve(next.F * x.P).transpose();
-    out[j] = plus(x, G * difference(out[j + 1], next.predicted));
+    out[j] = x.plus(G * out[j + 1].minus(next.predicted));
   }
   return out;
 }
@@ -57,7 +29,7 @@ std::vector<PoseFilterState> PoseSmoother::smoothed(std::size_t oldest) const {
 std::optional<LaggedPose> PoseSmoother::add(const PoseFilterStep& step) {
   window_.push_back(step);
   if (window_.size() <= static_cast<std::size_t>(lag_)) return std::nullopt;
-  const std::vector<PoseFilterState> s = smoothed(0);
+  const std::vector<PoseFilterState> s = smoothed();
   LaggedPose out{window_.front().timestamp, s.front().T_c_w()};
   window_.pop_front();
   return out;
@@ -74,7 +46,7 @@ std::optional<LaggedPose> PoseSmoother::add_unfiltered(double timestamp, const S
 }
 
 std::vector<LaggedPose> PoseSmoother::flush() {
-  const std::vector<PoseFilterState> s = smoothed(0);
+  const std::vector<PoseFilterState> s = smoothed();
   std::vector<LaggedPose> out;
   out.reserve(window_.size());
   for (std::size_t j = 0; j < window_.size(); ++j)

@@ -57,6 +57,14 @@ geometry_msgs::Pose pose_of(const SE3& T) {
   return out;
 }
 
+geometry_msgs::PoseStamped stamped_pose(double timestamp, const SE3& T, const std::string& frame) {
+  geometry_msgs::PoseStamped pose;
+  pose.header.stamp = ::ros::Time(timestamp);
+  pose.header.frame_id = frame;
+  pose.pose = pose_of(T);
+  return pose;
+}
+
 geometry_msgs::Transform transform_of(const SE3& T) {
   geometry_msgs::Transform out;
   out.translation.x = T.translation().x();
@@ -146,18 +154,6 @@ struct Transport::Impl {
     if (const auto k = intrinsics_of(*info)) callbacks.camera_info(*k, options.topics.camera_info);
   }
 };
-
-namespace {
-
-geometry_msgs::PoseStamped stamped_pose(double timestamp, const SE3& T, const std::string& frame) {
-  geometry_msgs::PoseStamped pose;
-  pose.header.stamp = ::ros::Time(timestamp);
-  pose.header.frame_id = frame;
-  pose.pose = pose_of(T);
-  return pose;
-}
-
-}  // namespace
 
 bool Transport::init(const NodeOptions& options, const std::function<bool()>& stop) {
   ::ros::init(::ros::M_string{}, "mcslam",

@@ -94,11 +94,15 @@ struct PoseFilterOptions {
 };
 
 using Matrix12d = Eigen::Matrix<double, 12, 12>;
+using Vector12d = Eigen::Matrix<double, 12, 1>;
 
 /// The filter's state: the camera centre c and velocity v (world), the rotation R_c_w and the
 /// angular velocity w (camera frame), and the covariance P of the error state
 /// [dc, dv, dtheta, dw] (c = c^ + dc, R_c_w = exp(dtheta) R^).
 struct PoseFilterState {
+  /// The error state's blocks: centre, velocity, rotation, angular velocity.
+  static constexpr int kC = 0, kV = 3, kTheta = 6, kW = 9;
+
   Eigen::Vector3d c = Eigen::Vector3d::Zero();
   Eigen::Vector3d v = Eigen::Vector3d::Zero();
   Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
@@ -106,6 +110,10 @@ struct PoseFilterState {
   Matrix12d P = Matrix12d::Identity();
 
   SE3 T_c_w() const;
+  /// This state moved by the error d (x (+) d): c + dc, v + dv, exp(dtheta) R, w + dw.
+  PoseFilterState plus(const Vector12d& d) const;
+  /// The error that moves b to this state (this (-) b).
+  Vector12d minus(const PoseFilterState& b) const;
   /// The state in a world moved by W (positions of the old world to the new one).
   void move_world(const SE3& W);
 };

@@ -48,11 +48,9 @@ class PoseSmoother {
   /// follow_map): the held states move too.
   void move_world(const SE3& W);
 
-  int lag() const { return lag_; }
-
  private:
-  /// The smoothed states of the held steps, oldest first, down to index `oldest`.
-  std::vector<PoseFilterState> smoothed(std::size_t oldest) const;
+  /// The smoothed states of the held steps, oldest first.
+  std::vector<PoseFilterState> smoothed() const;
 
   int lag_;
   std::deque<PoseFilterStep> window_;
