@@ -159,6 +159,7 @@ Frame FrameBuilder::finish(std::uint64_t id, double timestamp, DetectedFeatures 
   frame.id = id;
   frame.timestamp = timestamp;
   frame.features = std::move(result);
+  frame.readout_time = motion.readout_time;
   return frame;
 }
 

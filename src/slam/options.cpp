@@ -15,6 +15,10 @@ std::optional<std::string> TrackerOptions::check() const {
   if (max_descriptor_distance < 1 || max_descriptor_distance > 256)
     return "tracker.max_descriptor_distance must be in [1, 256]";
   if (!(depth_weight >= 0.0)) return "tracker.depth_weight must not be negative";
+  if (!(angular_velocity_sigma > 0.0) || !std::isfinite(angular_velocity_sigma))
+    return "tracker.angular_velocity_sigma must be positive and finite";
+  if (!(refine_min_angular_velocity >= 0.0))
+    return "tracker.refine_min_angular_velocity must not be negative";
   if (!(local_map_search_radius > 0.0)) return "tracker.local_map_search_radius must be positive";
   if (!(local_map_ratio > 0.0 && local_map_ratio <= 1.0))
     return "tracker.local_map_ratio must be in (0, 1]";

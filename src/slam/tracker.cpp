@@ -13,6 +13,7 @@
 #include "mcslam/features/lines.hpp"
 #include "mcslam/features/matching.hpp"
 #include "mcslam/optim/pose_optimizer.hpp"
+#include "mcslam/optim/rolling_shutter.hpp"
 #include "mcslam/place/matching.hpp"
 #include "measurement.hpp"
 
@@ -718,12 +719,38 @@ bool Tracker::track_reference_keyframe(const Frame& frame, Associations& assoc, 
   return optimize(frame, assoc, T_c_w) >= options_.min_pose_inliers;
 }
 
+void Tracker::refine_rolling_shutter(const Frame& frame, optim::PoseProblem& problem,
+                                     optim::PoseOptimizationResult& result) const {
+  if (!options_.refine_rolling_shutter || frame.readout_time == 0.0) return;
+  // The turn rate the keypoints were corrected with (no velocity: none, and all is to find).
+  if (velocity_ && angular_velocity().norm() < options_.refine_min_angular_velocity) return;
+  // A correction the frame's shear does not show (chi-square, 3 dof, 95 %) is noise: the
+  // prediction stays. Each pass re-selects the inliers under the corrected keypoints, so a large
+  // error (a frame tracked without a velocity: none was corrected) is taken in steps.
+  constexpr int kMaxPasses = 4;
+  constexpr double kChi2 = 7.815;
+  optim::PoseOptimizerOptions again_options = options_.pose;
+  // From the pose just solved: one robust round to re-select the inliers, one plain.
+  again_options.rounds = std::min(again_options.rounds, 2);
+  again_options.robust_rounds = std::min(again_options.robust_rounds, 1);
+  for (int pass = 0; pass < kMaxPasses; ++pass) {
+    const optim::AngularVelocityCorrection correction = optim::estimate_angular_velocity_correction(
+        camera_, problem, result.inlier, result.T_c_w, frame.readout_time,
+        options_.angular_velocity_sigma);
+    if (correction.points < options_.min_pose_inliers || !(correction.chi2 > kChi2)) return;
+    optim::apply_angular_velocity_correction(camera_, frame.readout_time, correction.d, problem);
+    auto again = optim::optimize_pose(camera_, result.T_c_w, problem, again_options);
+    if (again.failed) return;
+    result = std::move(again);
+  }
+}
+
 int Tracker::weighted_inliers(const Associations& assoc) const {
   return assoc.inlier_points(false) + assoc.inlier_lines(false) +
          options_.plane_inlier_weight * assoc.inlier_planes();
 }
 
-int Tracker::optimize(const Frame& frame, Associations& assoc, SE3& T_c_w) {
+int Tracker::optimize(const Frame& frame, Associations& assoc, SE3& T_c_w, bool rolling_shutter) {
   optim::PoseProblem problem;
   std::vector<std::size_t> point_index, line_index, plane_index;
   const auto& features = *frame.features;
@@ -775,7 +802,8 @@ int Tracker::optimize(const Frame& frame, Associations& assoc, SE3& T_c_w) {
   }
   problem.constrained_points = objects_.constrained_points();
   problem.constrained_lines = objects_.constrained_lines();
-  const auto result = optim::optimize_pose(camera_, start, problem, options_.pose);
+  auto result = optim::optimize_pose(camera_, start, problem, options_.pose);
+  if (rolling_shutter && !result.failed) refine_rolling_shutter(frame, problem, result);
   if (result.failed) {
     // No usable solution: the pose is not an estimate, and nothing is an inlier of it.
     ++solver_failures_;
@@ -1041,7 +1069,7 @@ int Tracker::track_local_map(const Frame& frame, Associations& assoc, SE3& T_c_w
     search_local_lines(frame, T_c_w, assoc.lines);
     search_planes(frame, T_c_w, assoc.planes);
   }
-  const int inliers = optimize(frame, assoc, T_c_w);
+  const int inliers = optimize(frame, assoc, T_c_w, true);
   for (const Match& m : assoc.points)
     if (m.active && !m.outlier && m.landmark != map::kNoId) {
       auto& stat = statistics_[m.landmark];
@@ -1078,7 +1106,7 @@ int Tracker::remove_movers(const Frame& frame, Associations& assoc, SE3& T_c_w, 
   for (map::PointId id : movers.moved_landmarks)
     if (moved_set_.insert(id).second) moved_points_.push_back(id);
   // The movers' features leave the optimisation (optimize() marks them as outliers).
-  return optimize(frame, assoc, T_c_w);
+  return optimize(frame, assoc, T_c_w, true);
 }
 
 Tracker::FirstEstimate Tracker::find_again(const Frame& frame, Associations& assoc, SE3& T_c_w) {

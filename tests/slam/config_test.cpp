@@ -120,6 +120,9 @@ TEST(Config, UnknownKeysAndBadValuesAreErrorsNamingTheFile) {
            {"tracker: {established_gate: 0.5}\n", "tracker.established_gate"},
            {"tracker: {recovery_window: -0.5}\n", "tracker.recovery_window"},
            {"tracker: {recovery_window: x}\n", "tracker.recovery_window"},
+           {"tracker: {angular_velocity_sigma: 0}\n", "tracker.angular_velocity_sigma"},
+           {"tracker: {refine_min_angular_velocity: -1}\n", "tracker.refine_min_angular_velocity"},
+           {"tracker: {refine_rolling_shutter: often}\n", "tracker.refine_rolling_shutter"},
            {"system: {extract_ahead: maybe}\n", "system.extract_ahead"}}) {
     SystemOptions fresh;
     io::ConfigFile bad = io::ConfigFile::from_string(text, "tracker.yaml");

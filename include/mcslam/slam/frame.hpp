@@ -35,6 +35,9 @@ struct Frame {
   std::uint64_t id = 0;
   double timestamp = 0.0;
   std::shared_ptr<const features::FrameFeatures> features;
+  /// The camera's rolling-shutter readout time (s; 0: a global shutter or not corrected) with
+  /// which the features were moved to the middle row's time (FrameMotion).
+  double readout_time = 0.0;
   /// Null when no detector or detections file is in use (geometry only).
   std::shared_ptr<const FrameObjects> objects;
 };

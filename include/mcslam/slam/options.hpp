@@ -37,6 +37,23 @@ struct TrackerOptions {
   /// Move each keypoint's depth from the depth image's capture time to the colour image's with
   /// the tracked velocity (Kinect v1 streams are ~15 ms apart: ~1 degree at 60 deg/s).
   bool compensate_depth_time = true;
+  /// In each frame's final pose optimisation, estimate the error of the angular velocity its
+  /// keypoints were moved to the middle row's time with from the frame's own rolling-shutter
+  /// shear (optim/rolling_shutter.hpp), move them by it and solve the pose again. Only with a
+  /// readout (camera.readout_time != 0). On: the prediction from the last frames misses a
+  /// handheld camera's turn rate by 0.49 rad/s (freiburg1_rpy), most of its online pose's
+  /// frame-to-frame noise (online RPE over one frame 8.35 -> 6.4 mm; docs/rolling-shutter.md).
+  bool refine_rolling_shutter = true;
+  /// The prior on that correction (rad/s per axis): the prediction's error, 0.49 rad/s RMS over
+  /// three axes against freiburg1_rpy's ground truth, 0.3 per axis.
+  double angular_velocity_sigma = 0.3;
+  /// The refinement runs when the predicted turn rate is at least this (rad/s), or when there is
+  /// no prediction (the frame after the map's first). The prediction misses by about 0.4 times
+  /// the turn rate (freiburg1_rpy: 0.49 rad/s RMS at 1.26), a shear of 2 px per rad/s between
+  /// the middle and the last row of a 20 ms readout at 525 px: below 0.5 rad/s it is under the
+  /// keypoints' own 1 px, and the frame's shear then tells it from the map's errors no better
+  /// than chance (Bonn crowd, turning at 0.1-0.3 rad/s: online ATE 1-1.6 mm worse refined).
+  double refine_min_angular_velocity = 0.5;
   int min_motion_matches = 20;
   int min_pose_inliers = 10;
   int min_local_map_inliers = 30;

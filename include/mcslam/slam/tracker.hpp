@@ -290,7 +290,13 @@ class Tracker {
   int search_local_lines(const Frame& frame, const SE3& T_c_w, std::vector<LineMatch>& matches);
   /// Pose optimisation on every active association, established landmarks first
   /// (TrackerOptions::established_age); returns the weighted inlier count.
-  int optimize(const Frame& frame, Associations& assoc, SE3& T_c_w);
+  /// `rolling_shutter`: also correct the frame's angular velocity from its own rolling-shutter
+  /// distortion and solve again (tracker.refine_rolling_shutter; the final solves only).
+  int optimize(const Frame& frame, Associations& assoc, SE3& T_c_w, bool rolling_shutter = false);
+  /// The angular velocity's correction (optim/rolling_shutter.hpp) estimated at `result`'s pose
+  /// and inliers, the keypoints of `problem` moved by it and the pose solved again.
+  void refine_rolling_shutter(const Frame& frame, optim::PoseProblem& problem,
+                              optim::PoseOptimizationResult& result) const;
   /// Which of the optimised point and line associations (by index) are established landmarks.
   /// Call under the map's read lock.
   std::pair<std::vector<bool>, std::vector<bool>> established_flags(
