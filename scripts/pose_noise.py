@@ -9,7 +9,10 @@ rotations; not associated to the nearest stamp, whose 5 ms offsets at 100 Hz wou
 (p[k+1] - 2 p[k] + p[k-1]) of the estimate and of the ground truth; ATE after a rigid
 alignment; and how much of the translation error a rotation error explains (least-squares fit
 te = M re: the columns of M are lever arms in metres, a pose loose along the direction where a
-small turn and a sideways shift move the image alike).
+small turn and a sideways shift move the image alike). Without the ground truth: each pose's own
+jitter, its position and rotation against the midpoint of its two neighbours (camera axes), and
+the same fit of the position jitter to the rotation jitter, which the ground truth's own rotation
+noise does not enter (the rotations' second differences are printed for both).
 
 Writes OUT.noise beside each estimate: timestamp, translation error x y z (mm), rotation
 error x y z (deg), per pair.
@@ -97,6 +100,38 @@ def align(a, b):  # R, t with b ~ R a + t
     return R, mb - R @ ma
 
 
+def rotation_exp(w):
+    angle = np.linalg.norm(w)
+    K = np.array([[0, -w[2], w[1]], [w[2], 0, -w[0]], [-w[1], w[0], 0]])
+    if angle < 1e-12:
+        return np.eye(3) + K
+    return np.eye(3) + np.sin(angle) / angle * K + (1 - np.cos(angle)) / angle ** 2 * K @ K
+
+
+def own_jitter(stamps, P, Rs):
+    """Each inner pose against the midpoint of its neighbours (linear in time): position (m) and
+    rotation (rad) jitter in the camera's axes."""
+    dp, dw = [], []
+    for k in range(1, len(P) - 1):
+        f = (stamps[k] - stamps[k - 1]) / (stamps[k + 1] - stamps[k - 1])
+        mid_p = P[k - 1] + f * (P[k + 1] - P[k - 1])
+        mid_R = Rs[k - 1] @ rotation_exp(f * rotation_log(Rs[k - 1].T @ Rs[k + 1]))
+        dp.append(Rs[k].T @ (P[k] - mid_p))
+        dw.append(rotation_log(mid_R.T @ Rs[k]))
+    return np.array(dp), np.array(dw)
+
+
+def rotation_second_difference(Rs):
+    steps = [rotation_log(a.T @ b) for a, b in zip(Rs, Rs[1:])]
+    return np.sqrt(np.mean([np.sum((b - a) ** 2) for a, b in zip(steps, steps[1:])]))
+
+
+def coupling(te, re):
+    """Least-squares te = re @ M and the share of te it explains."""
+    M = np.linalg.lstsq(re, te, rcond=None)[0]
+    return M, 1 - np.sum((te - re @ M) ** 2) / np.sum(te ** 2)
+
+
 def analyse(gt, path):
     stamps, positions, quats = gt
     est = load(path)
@@ -122,8 +157,7 @@ def analyse(gt, path):
     def second_difference(X):
         return np.sqrt(np.mean(np.sum((X[2:] - 2 * X[1:-1] + X[:-2]) ** 2, 1)))
 
-    M = np.linalg.lstsq(re, te, rcond=None)[0]
-    explained = 1 - np.sum((te - re @ M) ** 2) / np.sum(te ** 2)
+    M, explained = coupling(te, re)
     rms = lambda X: np.sqrt(np.mean(np.sum(X ** 2, 1)))
     print(f'{path}')
     print(f'  ATE {ate * 1e3:.2f} mm; RPE over one frame: translation {rms(te) * 1e3:.2f} mm '
@@ -134,6 +168,17 @@ def analyse(gt, path):
           f'ground truth {second_difference(G) * 1e3:.2f} mm')
     print(f'  translation error explained by the rotation error: {explained * 100:.0f} % '
           f'(lever arms, m: {" ".join(f"{v:.2f}" for v in M.T.flatten())})')
+    stamps_e = np.array([x[0] for x in rows])
+    dp, dw = own_jitter(stamps_e, P, [x[2] for x in rows])
+    Mj, explained_j = coupling(dp, dw)
+    print(f'  own jitter (no ground truth): position x y z '
+          f'{" ".join(f"{v:.2f}" for v in np.sqrt(np.mean(dp ** 2, 0)) * 1e3)} mm, rotation x y z '
+          f'{" ".join(f"{v:.3f}" for v in np.degrees(np.sqrt(np.mean(dw ** 2, 0))))} deg; '
+          f'{explained_j * 100:.0f} % of the position jitter follows the rotation jitter '
+          f'(lever arms, m: {" ".join(f"{v:.2f}" for v in Mj.T.flatten())})')
+    print(f'  second differences of the rotations: estimate '
+          f'{np.degrees(rotation_second_difference([x[2] for x in rows])):.3f} deg, ground truth '
+          f'{np.degrees(rotation_second_difference([x[4] for x in rows])):.3f} deg')
     t_pairs = np.array([x[0] for x in rows[1:]])
     np.savetxt(path + '.noise', np.column_stack([t_pairs, te * 1e3, np.degrees(re)]),
                fmt='%.6f', header='timestamp te_x te_y te_z (mm) re_x re_y re_z (deg), camera i')
