@@ -447,7 +447,8 @@ TEST(PoseFilterOptions, EachBadValueIsNamed) {
   o.lag = -1;
   EXPECT_NE(o.check()->find("lag"), std::string::npos);
   o = {};
-  o.lag = 5;  // without the filter
+  o.lag = 5;
+  o.enabled = false;  // a lag without the filter
   EXPECT_NE(o.check()->find("enabled"), std::string::npos);
   o.enabled = true;
   EXPECT_FALSE(o.check());

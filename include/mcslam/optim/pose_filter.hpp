@@ -31,13 +31,14 @@
 namespace mcslam::optim {
 
 struct PoseFilterOptions {
-  /// Off (the default): the filter returns each measurement as it is (the pose of the frame's own
-  /// observations). Its noise scale suits a handheld camera (sequential, online RPE over one frame
-  /// 9.0 -> 5.3 mm on freiburg1_rpy, 10.2 -> 2.4 mm on Bonn crowd part 1, online ATE lower too)
-  /// but not the rendered rooms, whose poses are as precise as the optimiser says: there the
-  /// model's lag costs more than it removes (online ATE 2.5 -> 3.8 mm at the usual speed, 3.4 ->
-  /// 11.8 mm at 2.5 times it; docs/cli.md).
-  bool enabled = false;
+  /// On (the default): the pose given out is the frame's own pose fused with the motion model,
+  /// with no lag. Default threaded runs with yolov8n_320, medians of 3 interleaved with 3 off:
+  /// online RPE over one frame 9.3 -> 5.4 mm on Bonn crowd part 1, 11.3 -> 6.4 mm from its frame
+  /// 240, 6.6 -> 5.7 mm on freiburg1_rpy, online ATE 18.8 -> 18.2, 15.7 -> 13.4 and 9.0 -> 9.0 mm;
+  /// the renders (`--sequential`) 1.6-3.8 -> 0.9-1.9 mm and their online ATE within 0.1 mm, but
+  /// for a camera accelerating at 2.4 m/s^2 RMS (2.5 times the usual speed: 3.3 -> 3.8 mm).
+  /// Off: each frame's own pose (docs/cli.md).
+  bool enabled = true;
   /// q_p, spectral density of the camera centre's acceleration per axis (m^2/s^3). The ground
   /// truth of the handheld sequences at hand measures 0.006 (freiburg1_rpy) and 0.003 (Bonn crowd
   /// part 1); 0.01 lets the camera move a little livelier than both (the final smoothing's value).
@@ -47,15 +48,15 @@ struct PoseFilterOptions {
   /// second); 3 lets the camera turn a little livelier than that.
   double angular_acceleration_density = 3.0;
   /// The measurement's covariance is the pose optimiser's (1 pixel at the keypoint's level)
-  /// times this factor squared. The pose's real frame-to-frame error is larger than the frame's
-  /// keypoint noise alone explains: its inliers' residuals say 0.66 px (a posteriori variance
-  /// factor 0.44, Bonn crowd part 1's static start), but the pose moves 1.5-2 times the
-  /// optimiser's sigma between frames, as each frame matches another subset of map points, each
-  /// with its own depth error (Kinect: 18 mm at 2.5 m). 6 makes the filter consistent on
-  /// freiburg1_rpy's fast handheld motion: mean normalised innovation squared 5.0 against 6
-  /// expected for 6 dof (on Bonn crowd's slow walk it is 0.45: the filter smooths less than it
-  /// could there).
-  double measurement_noise_scale = 6.0;
+  /// times this factor squared. 1: the optimiser's covariance is the pose's measured noise. A
+  /// frame's pose solved from one half of its point inliers and from the other differ by twice
+  /// the optimiser's sigma for the whole (Bonn crowd part 1: 8.5 / 8.4 / 2.9 mm against 3.4 / 4.2
+  /// / 1.2 mm, camera axes), as independent noise of that size does, and the same map points in
+  /// two frames leave their step as noisy as all (docs/cli.md). Larger factors smooth the
+  /// handheld sequences more (6: Bonn's online RPE over one frame 2.4 mm against 5.2, sequential)
+  /// by trusting the motion model beyond what the frames' noise asks, which a camera that
+  /// accelerates pays for in lag (the render at 2.4 m/s^2: online ATE 11.1 mm at 6, 3.8 at 1).
+  double measurement_noise_scale = 1.0;
   /// Normalised innovation squared (6 dof) above which a measurement counts less (Huber): its
   /// information is multiplied by sqrt(downweight_chi2 / nis). 12.59 is chi-square's 95 % point:
   /// a frame the model explains keeps its weight, one whose pose is off (a blurred frame, a
