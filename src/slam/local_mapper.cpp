@@ -252,10 +252,11 @@ void LocalMapper::insert_keyframe(const KeyFrameRequest& request) {
   kf.frame_id = request.frame.id;
   kf.timestamp = request.frame.timestamp;
   kf.T_c_w = request.T_c_w;
-  // Tracked before a loop correction: the keyframe moves with the keyframe it was tracked on.
+  // Tracked before a loop correction: the keyframe moves with the keyframe it was tracked on,
+  // through the chain of culled keyframes when that one was culled meanwhile.
   if (request.map_version < corrected_version_ && request.reference != map::kNoId)
-    if (const map::KeyFrame* ref = map_.keyframe(request.reference))
-      kf.T_c_w = request.T_c_ref * ref->T_c_w;
+    if (const std::optional<SE3> T_ref_w = map_.keyframe_pose_T_c_w(request.reference))
+      kf.T_c_w = request.T_c_ref * (*T_ref_w);
   // The keyframe keeps the features, not the grey image they came from (~300 KB at VGA, which
   // only carries boxes from one frame to the next): the map's memory grows by what it uses.
   if (request.frame.features && !request.frame.features->image.empty()) {

@@ -143,5 +143,45 @@ TEST(LocalMapper, AKeyframeWhoseLandmarkWasFusedMeanwhileTakesTheReplacement) {
   }
 }
 
+// A keyframe tracked before a correction and mapped after it moves with the keyframe it was
+// tracked on, also when that keyframe was culled in between (its pose then comes through the
+// culled keyframe's parent): left where it was tracked, it would sit in the old world, off by
+// the whole correction (25 cm here), and every frame referenced to it with it.
+TEST(LocalMapper, AKeyframeTrackedBeforeACorrectionFollowsItsCulledReference) {
+  const auto& seq = test::rendered_sequence(40, false);
+  Pipeline p(seq);
+  std::optional<KeyFrameRequest> held;
+  for (int i = 0; i < static_cast<int>(seq.frames.size()) && !held; ++i) {
+    TrackingOutcome out = p.track(i, /*hold=*/i > 10);
+    ASSERT_EQ(out.state, TrackingState::kOk) << i;
+    if (i > 10 && out.keyframe) held = std::move(out.keyframe);
+  }
+  ASSERT_TRUE(held.has_value());
+  ASSERT_NE(held->reference, map::kNoId);
+  ASSERT_NE(p.map.keyframe(held->reference), nullptr);
+  ASSERT_GE(p.map.num_keyframes(), 2u);
+  const SE3 tracked = held->T_c_w;
+  p.map.erase_keyframe(held->reference);
+  ASSERT_TRUE(p.map.keyframe_pose_T_c_w(held->reference).has_value());
+  Vector6d xi;
+  xi << 0.15, -0.2, 0.05, 0.0, std::numbers::pi / 45.0, 0.0;
+  const SE3 J = SE3::exp(xi);
+  map::MapCorrection correction;
+  for (const auto& [id, kf] : p.map.keyframes()) {
+    correction.before.emplace(id, kf.T_c_w);
+    correction.after.emplace(id, kf.T_c_w * J.inverse());
+  }
+  p.mapper.correct(correction);
+  const map::KeyFrameId id = held->id;
+  p.mapper.process(std::move(*held));
+  const map::KeyFrame* kf = p.map.keyframe(id);
+  ASSERT_NE(kf, nullptr);
+  // Where it was tracked, moved with the world; local bundle adjustment, which runs after the
+  // keyframe is inserted, moves it by millimetres at most on this render.
+  const SE3 expected = tracked * J.inverse();
+  EXPECT_LT((kf->T_w_c().translation() - expected.inverse().translation()).norm(), 0.01);
+  EXPECT_LT(rotation_angle((kf->T_c_w * expected.inverse()).quaternion()), 0.005);
+}
+
 }  // namespace
 }  // namespace mcslam::slam
