@@ -22,6 +22,35 @@ double centre_error(const SE3& T_c_w, const SE3& W_truth_est, const test::Render
   return (estimate - seq.groundtruth[static_cast<std::size_t>(i)].T_w_c.translation()).norm();
 }
 
+/// Tracks frames until the first keyframe after frame `after` and returns its request, held back
+/// from the mapper (none when a frame was lost or no keyframe came).
+std::optional<KeyFrameRequest> held_keyframe_after(Pipeline& p, const test::RenderedSequence& seq,
+                                                   int after) {
+  for (int i = 0; i < static_cast<int>(seq.frames.size()); ++i) {
+    TrackingOutcome out = p.track(i, /*hold=*/i > after);
+    EXPECT_EQ(out.state, TrackingState::kOk) << i;
+    if (out.state != TrackingState::kOk) return std::nullopt;
+    if (i > after && out.keyframe) return std::move(out.keyframe);
+  }
+  return std::nullopt;
+}
+
+/// A correction of the whole map, as a loop closure or a merged full bundle adjustment applies
+/// it: the world moves by J (25 cm and 4 degrees), p_new = J p_old, and every keyframe pose T
+/// becomes T J^-1. Returns J.
+SE3 move_the_world(Pipeline& p) {
+  Vector6d xi;
+  xi << 0.15, -0.2, 0.05, 0.0, std::numbers::pi / 45.0, 0.0;
+  const SE3 J = SE3::exp(xi);
+  map::MapCorrection correction;
+  for (const auto& [id, kf] : p.map.keyframes()) {
+    correction.before.emplace(id, kf.T_c_w);
+    correction.after.emplace(id, kf.T_c_w * J.inverse());
+  }
+  p.mapper.correct(correction);
+  return J;
+}
+
 // A correction (what a loop closure or a merged full bundle adjustment does) moves the whole map
 // by 25 cm and 4 degrees between two frames of a static scene. The tracker's history of earlier
 // frames (feature tracks, the object handler's past poses) must follow the map: seen in the old
@@ -33,16 +62,7 @@ TEST(Tracker, ACorrectionOfTheWholeMapMovesNoStaticLandmarkOut) {
   const auto& seq = test::rendered_sequence(last, false);
   Pipeline p(seq);
   for (int i = 0; i < jump_at; ++i) ASSERT_EQ(p.track(i).state, TrackingState::kOk) << i;
-  // The world moves by J: p_new = J p_old; every keyframe pose T becomes T J^-1.
-  Vector6d xi;
-  xi << 0.15, -0.2, 0.05, 0.0, std::numbers::pi / 45.0, 0.0;
-  const SE3 J = SE3::exp(xi);
-  map::MapCorrection correction;
-  for (const auto& [id, kf] : p.map.keyframes()) {
-    correction.before.emplace(id, kf.T_c_w);
-    correction.after.emplace(id, kf.T_c_w * J.inverse());
-  }
-  p.mapper.correct(correction);
+  const SE3 J = move_the_world(p);
   const std::size_t points_before = p.map.num_points();
 
   int movers = 0, moved_landmarks = 0;
@@ -107,12 +127,7 @@ TEST(LocalMapper, AKeyframeWhoseLandmarkWasFusedMeanwhileTakesTheReplacement) {
   SystemOptions o;
   o.mapper.fuse_neighbours = 0;
   Pipeline p(seq, o);
-  std::optional<KeyFrameRequest> held;
-  for (int i = 0; i < static_cast<int>(seq.frames.size()) && !held; ++i) {
-    TrackingOutcome out = p.track(i, /*hold=*/i > 10);
-    ASSERT_EQ(out.state, TrackingState::kOk) << i;
-    if (i > 10 && out.keyframe) held = std::move(out.keyframe);
-  }
+  std::optional<KeyFrameRequest> held = held_keyframe_after(p, seq, 10);
   ASSERT_TRUE(held.has_value());
   // Two landmarks of the request, fused into two other map points.
   std::vector<std::pair<std::size_t, map::PointId>> fused;
@@ -150,12 +165,7 @@ TEST(LocalMapper, AKeyframeWhoseLandmarkWasFusedMeanwhileTakesTheReplacement) {
 TEST(LocalMapper, AKeyframeTrackedBeforeACorrectionFollowsItsCulledReference) {
   const auto& seq = test::rendered_sequence(40, false);
   Pipeline p(seq);
-  std::optional<KeyFrameRequest> held;
-  for (int i = 0; i < static_cast<int>(seq.frames.size()) && !held; ++i) {
-    TrackingOutcome out = p.track(i, /*hold=*/i > 10);
-    ASSERT_EQ(out.state, TrackingState::kOk) << i;
-    if (i > 10 && out.keyframe) held = std::move(out.keyframe);
-  }
+  std::optional<KeyFrameRequest> held = held_keyframe_after(p, seq, 10);
   ASSERT_TRUE(held.has_value());
   ASSERT_NE(held->reference, map::kNoId);
   ASSERT_NE(p.map.keyframe(held->reference), nullptr);
@@ -163,15 +173,7 @@ TEST(LocalMapper, AKeyframeTrackedBeforeACorrectionFollowsItsCulledReference) {
   const SE3 tracked = held->T_c_w;
   p.map.erase_keyframe(held->reference);
   ASSERT_TRUE(p.map.keyframe_pose_T_c_w(held->reference).has_value());
-  Vector6d xi;
-  xi << 0.15, -0.2, 0.05, 0.0, std::numbers::pi / 45.0, 0.0;
-  const SE3 J = SE3::exp(xi);
-  map::MapCorrection correction;
-  for (const auto& [id, kf] : p.map.keyframes()) {
-    correction.before.emplace(id, kf.T_c_w);
-    correction.after.emplace(id, kf.T_c_w * J.inverse());
-  }
-  p.mapper.correct(correction);
+  const SE3 J = move_the_world(p);
   const map::KeyFrameId id = held->id;
   p.mapper.process(std::move(*held));
   const map::KeyFrame* kf = p.map.keyframe(id);
