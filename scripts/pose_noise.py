@@ -168,8 +168,8 @@ def analyse(gt, path):
           f'ground truth {second_difference(G) * 1e3:.2f} mm')
     print(f'  translation error explained by the rotation error: {explained * 100:.0f} % '
           f'(lever arms, m: {" ".join(f"{v:.2f}" for v in M.T.flatten())})')
-    stamps_e = np.array([x[0] for x in rows])
-    dp, dw = own_jitter(stamps_e, P, [x[2] for x in rows])
+    est_R, gt_R = [x[2] for x in rows], [x[4] for x in rows]
+    dp, dw = own_jitter(np.array([x[0] for x in rows]), P, est_R)
     Mj, explained_j = coupling(dp, dw)
     print(f'  own jitter (no ground truth): position x y z '
           f'{" ".join(f"{v:.2f}" for v in np.sqrt(np.mean(dp ** 2, 0)) * 1e3)} mm, rotation x y z '
@@ -177,8 +177,8 @@ def analyse(gt, path):
           f'{explained_j * 100:.0f} % of the position jitter follows the rotation jitter '
           f'(lever arms, m: {" ".join(f"{v:.2f}" for v in Mj.T.flatten())})')
     print(f'  second differences of the rotations: estimate '
-          f'{np.degrees(rotation_second_difference([x[2] for x in rows])):.3f} deg, ground truth '
-          f'{np.degrees(rotation_second_difference([x[4] for x in rows])):.3f} deg')
+          f'{np.degrees(rotation_second_difference(est_R)):.3f} deg, ground truth '
+          f'{np.degrees(rotation_second_difference(gt_R)):.3f} deg')
     t_pairs = np.array([x[0] for x in rows[1:]])
     np.savetxt(path + '.noise', np.column_stack([t_pairs, te * 1e3, np.degrees(re)]),
                fmt='%.6f', header='timestamp te_x te_y te_z (mm) re_x re_y re_z (deg), camera i')
