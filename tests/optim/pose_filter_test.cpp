@@ -149,7 +149,7 @@ TEST(PoseFilter, TakesTheLooseDirectionFromTheMotionAndKeepsTheRest) {
 
 // A camera swung faster than the densities allow: the innovations grow, the densities follow
 // them, and the poses lag less behind the camera. Measured: step error 8.55 mm measured, 14.32
-// fixed, 8.03 adaptive; position error 19.00 fixed, 10.67 adaptive (the measurements' own 5.81:
+// fixed, 6.04 adaptive; position error 19.00 fixed, 9.67 adaptive (the measurements' own 5.81:
 // matching the innovations' mean to 6 leaves some lag).
 TEST(PoseFilter, TheDensitiesFollowACameraLivelierThanTheyAllow) {
   const Matrix6d cov = valley_covariance();
@@ -174,6 +174,47 @@ TEST(PoseFilter, TheDensitiesFollowACameraLivelierThanTheyAllow) {
       position_error_rms(run.measured, run.truth, 30) * 1e3);
   EXPECT_LT(with_adapted, measured);
   EXPECT_LT(lag_adapted, 0.8 * lag_fixed);
+}
+
+// A few frames off the motion (a blurred turn, a subset of map points that drags the pose) are
+// not a livelier camera: the densities rise a little and settle back, and the frames after the
+// burst are smoothed about as before it. Moved by the mean's whole ratio at every frame, the
+// densities went on growing while the slow mean stayed above 6. Measured (8 frames 5 sigma off,
+// normalised innovations 10-43): liveliness at most 1.3, step error 2.25 mm before the burst and
+// 2.73 mm in the 2 s after it; with the whole ratio at every frame 39.8 and 3.29 mm.
+TEST(PoseFilter, AFewFramesOffTheMotionDoNotLiftTheDensitiesForLong) {
+  const Matrix6d cov = valley_covariance();
+  Noisy run = simulate(240, 29, cov);
+  const Matrix6d L = cov.llt().matrixL();
+  constexpr int kBurst = 90, kBurstFrames = 8;
+  for (int k = kBurst; k < kBurst + kBurstFrames; ++k) {
+    // 5 sigma off each, alternately one way and the other: inside the gate.
+    Vector6d n = Vector6d::Zero();
+    n(0) = (k % 2 == 0 ? 5.0 : -5.0);
+    run.measured[static_cast<std::size_t>(k)] =
+        SE3::exp(L * n) * run.measured[static_cast<std::size_t>(k)];
+  }
+  PoseFilter filter(exact());
+  std::vector<SE3> filtered;
+  double most = 1.0;
+  int restarts = 0;
+  for (std::size_t k = 0; k < run.measured.size(); ++k) {
+    const PoseFilterUpdate u = filter.update(run.times[k], run.measured[k], cov.inverse());
+    restarts += u.restarted && k > 0 ? 1 : 0;
+    filtered.push_back(u.T_c_w);
+    most = std::max(most, filter.liveliness());
+  }
+  const auto part = [&](int from, int to) {
+    const std::vector<SE3> f(filtered.begin() + from, filtered.begin() + to);
+    const std::vector<SE3> t(run.truth.begin() + from, run.truth.begin() + to);
+    return step_error_rms(f, t, 0);
+  };
+  const double before = part(30, kBurst), after = part(kBurst + 15, kBurst + 75);
+  std::printf("liveliness at most %.1f; step error %.2f mm before the burst, %.2f mm after\n", most,
+              before * 1e3, after * 1e3);
+  EXPECT_EQ(restarts, 0);
+  EXPECT_LT(most, 4.0);
+  EXPECT_LT(after, 1.3 * before);
 }
 
 TEST(PoseFilter, AJumpTheMotionCannotExplainRestartsAtTheMeasurement) {

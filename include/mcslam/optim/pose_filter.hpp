@@ -32,11 +32,11 @@ namespace mcslam::optim {
 
 struct PoseFilterOptions {
   /// On (the default): the pose given out is the frame's own pose fused with the motion model,
-  /// with no lag. Default threaded runs with yolov8n_320, medians of 3 interleaved with 3 off:
-  /// online RPE over one frame 9.3 -> 5.4 mm on Bonn crowd part 1, 11.3 -> 6.4 mm from its frame
-  /// 240, 6.6 -> 5.7 mm on freiburg1_rpy, online ATE 18.8 -> 18.2, 15.7 -> 13.4 and 9.0 -> 9.0 mm;
-  /// the renders (`--sequential`) 1.6-3.8 -> 0.9-1.9 mm and their online ATE within 0.1 mm, but
-  /// for a camera accelerating at 2.4 m/s^2 RMS (2.5 times the usual speed: 3.3 -> 3.8 mm).
+  /// with no lag. Default threaded runs with yolov8n_320, medians of 6 against 3 off: online RPE
+  /// over one frame 9.4 -> 5.0 mm on Bonn crowd part 1, 12.9 -> 5.5 mm from its frame 240,
+  /// 6.5 -> 5.7 mm on freiburg1_rpy, online ATE 19.2 -> 18.3, 15.9 -> 13.9 and 9.2 -> 8.8 mm;
+  /// the renders (`--sequential`) 1.6-3.8 -> 0.9-1.7 mm and their online ATE within 0.1 mm, but
+  /// for a camera accelerating at 2.4 m/s^2 RMS (2.5 times the usual speed: 3.3 -> 3.5 mm).
   /// Off: each frame's own pose (docs/cli.md).
   bool enabled = true;
   /// q_p, spectral density of the camera centre's acceleration per axis (m^2/s^3). The ground
@@ -53,9 +53,9 @@ struct PoseFilterOptions {
   /// the optimiser's sigma for the whole (Bonn crowd part 1: 8.5 / 8.4 / 2.9 mm against 3.4 / 4.2
   /// / 1.2 mm, camera axes), as independent noise of that size does, and the same map points in
   /// two frames leave their step as noisy as all (docs/cli.md). Larger factors smooth the
-  /// handheld sequences more (6: Bonn's online RPE over one frame 2.4 mm against 5.2, sequential)
+  /// handheld sequences more (6: Bonn's online RPE over one frame 2.5 mm against 4.8, sequential)
   /// by trusting the motion model beyond what the frames' noise asks, which a camera that
-  /// accelerates pays for in lag (the render at 2.4 m/s^2: online ATE 11.1 mm at 6, 3.8 at 1).
+  /// accelerates pays for in lag (the render at 2.4 m/s^2: online ATE 11.5 mm at 6, 3.5 at 1).
   double measurement_noise_scale = 1.0;
   /// Normalised innovation squared (6 dof) above which a measurement counts less (Huber): its
   /// information is multiplied by sqrt(downweight_chi2 / nis). 12.59 is chi-square's 95 % point:
@@ -81,7 +81,8 @@ struct PoseFilterOptions {
   /// Adaptive densities (covariance matching): the recent mean of the normalised innovation
   /// squared, averaged over this many seconds, against the 6 a consistent filter gives; when the
   /// camera moves livelier than the densities allow (the mean above 6), both densities are
-  /// multiplied by mean / 6 until it is 6 again, never below the settings' values. 0: fixed.
+  /// multiplied by (mean / 6)^(dt / adaptive_memory) at each frame until it is 6 again, never
+  /// below the settings' values: by the ratio over one memory's time. 0: fixed.
   double adaptive_memory = 0.5;
   /// The most the densities may be multiplied by.
   double max_liveliness = 1000.0;
@@ -156,6 +157,8 @@ class PoseFilter {
   void move_world(const SE3& W);
 
   bool started() const { return started_; }
+  /// The factor the densities are multiplied by now (adaptive_memory; 1: the settings').
+  double liveliness() const { return liveliness_; }
 
  private:
   void restart(double timestamp, const SE3& T_c_w, const Matrix6d& information,
