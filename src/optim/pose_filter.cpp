@@ -133,9 +133,9 @@ void PoseFilter::adapt(double dt, double nis) {
   // livelier than the densities gives larger innovations, and the densities follow (never below
   // the settings', so that a calm camera keeps them); one bad frame counts at most 4 times 6.
   // The multiplier moves by (mean / 6)^(dt / memory): by the ratio over one memory's time, as
-  // fast as the mean itself can tell. Moved by the whole ratio at every frame, it went on
-  // growing for as long as the slow mean stayed above 6 after a few frames off the motion (90th
-  // percentile over the frames: freiburg1_rpy 370, now 53; Bonn crowd part 1 34, now 3.6).
+  // fast as the mean itself can tell, so that a few frames off the motion, which hold the slow
+  // mean above 6 for about that time, lift it by about that ratio once (its 90th percentile over
+  // the frames: freiburg1_rpy 53, Bonn crowd part 1 3.6).
   const double keep = std::exp(-dt / options_.adaptive_memory);
   mean_nis_ = keep * mean_nis_ + (1.0 - keep) * std::min(nis, 24.0);
   liveliness_ = std::clamp(liveliness_ * std::pow(mean_nis_ / 6.0, dt / options_.adaptive_memory),
