@@ -21,6 +21,9 @@ std::optional<std::string> PoseFilterOptions::check() const {
     return "pose_filter.adaptive_memory must be a number of seconds >= 0 (0: fixed densities)";
   if (!(std::isfinite(max_liveliness) && max_liveliness >= 1.0))
     return "pose_filter.max_liveliness must be a number >= 1";
+  if (!(std::isfinite(noise_window) && noise_window >= 0.0))
+    return "pose_filter.noise_window must be a number of seconds >= 0 (0: the optimiser's "
+           "covariance as it is)";
   if (lag < 0 || lag > 300) return "pose_filter.lag must be a number of frames from 0 to 300";
   if (lag > 0 && !enabled) return "pose_filter.lag needs pose_filter.enabled: true";
   return std::nullopt;
@@ -92,7 +95,14 @@ void PoseFilterState::move_world(const SE3& W) {
   P = J * P * J.transpose();
 }
 
-PoseFilter::PoseFilter(const PoseFilterOptions& options) : options_(options) {}
+PoseFilter::PoseFilter(const PoseFilterOptions& options)
+    : options_(options), noise_(options.noise_window) {}
+
+double PoseFilter::measurement_variance_factor() const {
+  const double s2 = options_.measurement_noise_scale * options_.measurement_noise_scale;
+  if (!(options_.noise_window > 0.0)) return s2;
+  return s2 * std::max(1.0, noise_.variance_factor());
+}
 
 void PoseFilter::restart(double timestamp, const SE3& T_c_w, const Matrix6d& information,
                          bool keep_velocities) {
@@ -109,8 +119,7 @@ void PoseFilter::restart(double timestamp, const SE3& T_c_w, const Matrix6d& inf
   x_.c = -(x_.R.transpose() * T_c_w.translation());
   // The pose as uncertain as its measurement says (a direction it leaves free: 1 m, 1 rad); the
   // velocities unknown at a handheld camera's scale (1 m/s, 2 rad/s).
-  const double s2 = options_.measurement_noise_scale * options_.measurement_noise_scale;
-  Matrix6d H = information_on_centre(information, x_.R) / s2;
+  Matrix6d H = information_on_centre(information, x_.R) / measurement_variance_factor();
   H += Matrix6d::Identity();
   const Matrix6d cov = H.inverse();
   x_.P.setZero();
@@ -134,8 +143,9 @@ void PoseFilter::adapt(double dt, double nis) {
   // the settings', so that a calm camera keeps them); one bad frame counts at most 4 times 6.
   // The multiplier moves by (mean / 6)^(dt / memory): by the ratio over one memory's time, as
   // fast as the mean itself can tell, so that a few frames off the motion, which hold the slow
-  // mean above 6 for about that time, lift it by about that ratio once (its 90th percentile over
-  // the frames: freiburg1_rpy 53, Bonn crowd part 1 3.6).
+  // mean above 6 for about that time, lift it by about that ratio once. With the frames' noise
+  // measured (noise_window), the handheld sequences' innovations stay below 6 and the multiplier
+  // at 1 (freiburg1_rpy's at most 1.8); the render at 2.4 m/s^2 lifts it (90th percentile 7.5).
   const double keep = std::exp(-dt / options_.adaptive_memory);
   mean_nis_ = keep * mean_nis_ + (1.0 - keep) * std::min(nis, 24.0);
   liveliness_ = std::clamp(liveliness_ * std::pow(mean_nis_ / 6.0, dt / options_.adaptive_memory),
@@ -181,6 +191,12 @@ PoseFilterUpdate PoseFilter::update(double timestamp, const SE3& T_c_w,
     return out;
   }
   const double dt = timestamp - timestamp_;
+  const Matrix3d R_m = T_c_w.rotation();
+  const Vector3d c_m = -(R_m.transpose() * T_c_w.translation());
+  if (options_.noise_window > 0.0) {
+    if (!started_ || !(dt > 0.0) || dt > options_.max_gap) noise_.break_sequence();
+    noise_.add(timestamp, R_m, c_m, information_on_centre(information, R_m));
+  }
   if (!started_ || !(dt > 0.0) || dt > options_.max_gap || !information.allFinite()) {
     restart(timestamp, T_c_w, information.allFinite() ? information : Matrix6d::Zero(), false);
     return restarted_at(timestamp, T_c_w, 0.0);
@@ -190,13 +206,10 @@ PoseFilterUpdate PoseFilter::update(double timestamp, const SE3& T_c_w,
   step.F = predict(dt);
   step.predicted = x_;
 
-  const Matrix3d R_m = T_c_w.rotation();
-  const Vector3d c_m = -(R_m.transpose() * T_c_w.translation());
   Vector6d z;
   z.head<3>() = c_m - x_.c;
   z.tail<3>() = rotation_log(R_m * x_.R.transpose());
-  const double s2 = options_.measurement_noise_scale * options_.measurement_noise_scale;
-  Matrix6d H = information_on_centre(information, x_.R) / s2;
+  Matrix6d H = information_on_centre(information, x_.R) / measurement_variance_factor();
   // S^-1 = (C P C^T + H^-1)^-1 = H (I + C P C^T H)^-1: no inverse of H, which may be singular.
   const Matrix12x6d PC = measured_columns(x_.P);
   Matrix6d CPC;
@@ -231,6 +244,7 @@ PoseFilterUpdate PoseFilter::update(double timestamp, const SE3& T_c_w,
 }
 
 void PoseFilter::move_world(const SE3& W) {
+  noise_.move_world(W);
   if (started_ && options_.follow_map) x_.move_world(W);
 }
 

@@ -129,6 +129,7 @@ std::vector<Field> mcslam_fields(PinholeCamera& c, SystemOptions& o) {
       {"tracker.pose_filter.follow_map", &t.pose_filter.follow_map},
       {"tracker.pose_filter.max_gap", &t.pose_filter.max_gap},
       {"tracker.pose_filter.adaptive_memory", &t.pose_filter.adaptive_memory},
+      {"tracker.pose_filter.noise_window", &t.pose_filter.noise_window},
       {"tracker.pose_filter.max_liveliness", &t.pose_filter.max_liveliness},
       {"tracker.pose_filter.lag", &t.pose_filter.lag},
       {"dynamics.enabled", &t.dynamics.enabled},

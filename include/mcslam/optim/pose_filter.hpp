@@ -27,16 +27,17 @@
 #include <string>
 
 #include "mcslam/core/se3.hpp"
+#include "mcslam/optim/pose_noise.hpp"
 
 namespace mcslam::optim {
 
 struct PoseFilterOptions {
   /// On (the default): the pose given out is the frame's own pose fused with the motion model,
   /// with no lag. Default threaded runs with yolov8n_320, medians of 6 against 3 off: online RPE
-  /// over one frame 9.4 -> 5.0 mm on Bonn crowd part 1, 12.9 -> 5.5 mm from its frame 240,
-  /// 6.5 -> 5.7 mm on freiburg1_rpy, online ATE 19.2 -> 18.3, 15.9 -> 13.9 and 9.2 -> 8.8 mm;
-  /// the renders (`--sequential`) 1.6-3.8 -> 0.9-1.7 mm and their online ATE within 0.1 mm, but
-  /// for a camera accelerating at 2.4 m/s^2 RMS (2.5 times the usual speed: 3.3 -> 3.5 mm).
+  /// over one frame Bonn crowd part 1 9.7 -> 3.1 mm, from its frame 240 12.4 -> 4.4 mm,
+  /// freiburg1_rpy 6.3 -> 3.1 mm (docs/cli.md has the online ATE); the renders
+  /// (`--sequential`) 1.6-3.8 -> 0.9-1.7 mm and their online ATE within 0.1 mm, but for a camera
+  /// accelerating at 2.4 m/s^2 RMS (2.5 times the usual speed: 3.3 -> 3.5 mm).
   /// Off: each frame's own pose (docs/cli.md).
   bool enabled = true;
   /// q_p, spectral density of the camera centre's acceleration per axis (m^2/s^3). The ground
@@ -47,16 +48,24 @@ struct PoseFilterOptions {
   /// freiburg1_rpy's ground truth measures about 1 (its rolls and pitches reach 1.5 rad/s in a
   /// second); 3 lets the camera turn a little livelier than that.
   double angular_acceleration_density = 3.0;
-  /// The measurement's covariance is the pose optimiser's (1 pixel at the keypoint's level)
-  /// times this factor squared. 1: the optimiser's covariance is the pose's measured noise. A
-  /// frame's pose solved from one half of its point inliers and from the other differ by twice
-  /// the optimiser's sigma for the whole (Bonn crowd part 1: 8.5 / 8.4 / 2.9 mm against 3.4 / 4.2
-  /// / 1.2 mm, camera axes), as independent noise of that size does, and the same map points in
-  /// two frames leave their step as noisy as all (docs/cli.md). Larger factors smooth the
-  /// handheld sequences more (6: Bonn's online RPE over one frame 2.5 mm against 4.8, sequential)
-  /// by trusting the motion model beyond what the frames' noise asks, which a camera that
-  /// accelerates pays for in lag (the render at 2.4 m/s^2: online ATE 11.5 mm at 6, 3.5 at 1).
+  /// The measurement's covariance is the pose optimiser's (1 pixel at the keypoint's level), times
+  /// the measured factor of `noise_window`, times this factor squared: 1, the measured noise.
+  /// Larger factors smooth more than the frames' noise asks, which a camera that accelerates pays
+  /// for in lag.
   double measurement_noise_scale = 1.0;
+  /// Seconds of the poses' own third differences (pose_noise.hpp) from which the filter measures
+  /// how far the optimiser's covariance understates a frame's noise; the covariance is multiplied
+  /// by that factor where it is above 1 (never below: the optimiser's covariance is what the
+  /// keypoints' noise alone gives). The handheld sequences' frames are off by an error common to
+  /// their keypoints that the optimiser does not count (the factor's median over a run,
+  /// `--sequential`: freiburg1_rpy 85, Bonn crowd part 1 9, from its frame 240 5.5); the renders'
+  /// keypoints are more precise than the optimiser's 1 pixel (factors 0.2-0.5, held at 1). One
+  /// second holds 30 differences at 30 Hz: the median's relative error is then about 0.14, and
+  /// the noise changes with the scene over seconds. Measured against 0 (the optimiser's
+  /// covariance as it is; default threaded, medians of 6 side by side): online RPE over one
+  /// frame freiburg1_rpy 5.9 -> 3.1 mm, Bonn crowd part 1 4.8 -> 3.1, from frame 240 6.2 -> 4.4,
+  /// `--realtime` 4.6 -> 3.0; online ATE within the runs' spread (docs/cli.md).
+  double noise_window = 1.0;
   /// Normalised innovation squared (6 dof) above which a measurement counts less (Huber): its
   /// information is multiplied by sqrt(downweight_chi2 / nis). 12.59 is chi-square's 95 % point:
   /// a frame the model explains keeps its weight, one whose pose is off (a blurred frame, a
@@ -65,16 +74,17 @@ struct PoseFilterOptions {
   double downweight_chi2 = 12.59;
   /// Normalised innovation squared (6 dof) above which the filter restarts at the measurement: a
   /// jump, not noise (a relocalisation, a loop closure's correction of the map). A consistent
-  /// filter exceeds 50 once in 2e8 frames (chi-square, 6 dof); the handheld sequences' frames
-  /// reach 22-50 at their fastest turns, which the downweighting absorbs.
+  /// filter exceeds 50 once in 2e8 frames (chi-square, 6 dof); with the frames' noise measured
+  /// (noise_window), freiburg1_rpy's frames exceed 12.59 at 16 of 692 and 50 at 5, Bonn crowd
+  /// part 1's 12.59 at 3 of 458 (`--sequential`).
   double gate_chi2 = 50.0;
   /// false (the default): when bundle adjustment or a loop correction moves the map under the
   /// tracker, the filter keeps its state; the correction reaches the pose through the next
   /// frames' measurements, at the rate the motion model allows, or at once when it is beyond the
   /// gate (a loop closure). Local bundle adjustment moves the map by 5 mm (median, p90 12 mm,
   /// 113 times in Bonn crowd part 1's 460 frames): followed at once, those moves are jumps of the
-  /// pose that the camera never made (online RPE over one frame 4.3 against 2.4 mm not
-  /// following). true: the state moves with the map (the pose jumps with it).
+  /// pose that the camera never made (`--sequential`, online RPE over one frame 4.5 against
+  /// 3.2 mm not following). true: the state moves with the map (the pose jumps with it).
   bool follow_map = false;
   /// A longer time between two measurements restarts the filter (seconds).
   double max_gap = 0.5;
@@ -159,6 +169,9 @@ class PoseFilter {
   bool started() const { return started_; }
   /// The factor the densities are multiplied by now (adaptive_memory; 1: the settings').
   double liveliness() const { return liveliness_; }
+  /// The factor the measurements' covariance is multiplied by now (measurement_noise_scale^2
+  /// times the measured factor of noise_window, at least 1).
+  double measurement_variance_factor() const;
 
  private:
   void restart(double timestamp, const SE3& T_c_w, const Matrix6d& information,
@@ -174,6 +187,7 @@ class PoseFilter {
   PoseFilterState x_;
   double liveliness_ = 1.0;  // the densities' multiplier
   double mean_nis_ = 6.0;    // the recent innovations' mean
+  PoseNoiseEstimate noise_;  // the measurements' noise against their covariance
 };
 
 }  // namespace mcslam::optim
