@@ -243,6 +243,27 @@ FrameResult System::process(const PreparedImages& images, double timestamp,
   TrackingOutcome outcome = tracker_->track(frame, sequential || mapper_->idle(),
                                             sequential ? 0 : mapper_->queue_size(), &result.times);
   pose_failures_ = tracker_->solver_failures();
+  report_tracking(frame, outcome, result);
+  remember_moving_regions(result);
+  if (readout_) observe_readout(frame, motion, outcome);
+  if (outcome.state == TrackingState::kOk) {
+    result.T_w_c = outcome.T_c_w_online.inverse();
+    place_moving_objects(images.depth, *result.T_w_c, result);
+    if (options_.localize && occupancy_) add_localize_view(images.depth, result);
+    record.tracked = true;
+    record.reference = outcome.reference;
+    record.T_c_ref = outcome.T_c_ref;
+    record.T_c_w = outcome.T_c_w_online;
+  }
+  if (outcome.lagged)
+    result.lagged = StampedPose{outcome.lagged->timestamp, outcome.lagged->T_c_w.inverse()};
+  if (outcome.keyframe) hand_over_keyframe(std::move(*outcome.keyframe), images, result);
+  add_record(record, result.lagged);
+  return result;
+}
+
+void System::report_tracking(const Frame& frame, TrackingOutcome& outcome,
+                             FrameResult& result) const {
   result.state = outcome.state;
   result.relocalised = outcome.relocalised;
   result.relocalisation = outcome.relocalisation;
@@ -262,50 +283,36 @@ FrameResult System::process(const PreparedImages& images, double timestamp,
   result.stale_iou = outcome.objects.stale_iou;
   result.mover_regions = outcome.objects.mover_regions;
   result.mover_points = outcome.objects.mover_points;
-  remember_moving_regions(result);
-  if (readout_) observe_readout(frame, motion, outcome);
-  if (outcome.state == TrackingState::kOk) {
-    result.T_w_c = outcome.T_c_w_online.inverse();
-    place_moving_objects(images.depth, *result.T_w_c, result);
-    if (options_.localize && occupancy_) add_localize_view(images.depth, result);
-    record.tracked = true;
-    record.reference = outcome.reference;
-    record.T_c_ref = outcome.T_c_ref;
-    record.T_c_w = outcome.T_c_w_online;
+}
+
+void System::hand_over_keyframe(KeyFrameRequest keyframe, const PreparedImages& images,
+                                FrameResult& result) {
+  result.keyframe = true;
+  ++keyframes_made_;
+  next_frame_waits_for_boxes_ = frame_waits_for_boxes();
+  // New points take their colour from the keyframe's image (for the saved map). The mapper
+  // undistorts it on its thread; its own copy, as the caller may reuse its buffer.
+  if (images.rgb.channels() == 3) keyframe.color = images.rgb.clone();
+  if (occupancy_) {
+    // Shared: the prepared depth is never written after it was made.
+    keyframe.depth = images.depth;
+    keyframe.dynamic_regions = object_regions(result.objects, ObjectState::kDynamic);
+    keyframe.mover_regions = object_regions(result.objects, ObjectState::kConstrained);
+    keyframe.still_regions = object_regions(result.objects, ObjectState::kStatic);
   }
-  if (outcome.lagged)
-    result.lagged = StampedPose{outcome.lagged->timestamp, outcome.lagged->T_c_w.inverse()};
-  if (outcome.keyframe) {
-    result.keyframe = true;
-    ++keyframes_made_;
-    next_frame_waits_for_boxes_ = frame_waits_for_boxes();
-    // New points take their colour from the keyframe's image (for the saved map). The mapper
-    // undistorts it on its thread; its own copy, as the caller may reuse its buffer.
-    if (rgb.channels() == 3) outcome.keyframe->color = rgb.clone();
-    if (occupancy_) {
-      // Shared: the prepared depth is never written after it was made.
-      outcome.keyframe->depth = images.depth;
-      outcome.keyframe->dynamic_regions = object_regions(result.objects, ObjectState::kDynamic);
-      outcome.keyframe->mover_regions = object_regions(result.objects, ObjectState::kConstrained);
-      outcome.keyframe->still_regions = object_regions(result.objects, ObjectState::kStatic);
-    }
-    if (sequential) {
-      StageTimes mapper_times;
-      try {
-        mapper_->process(std::move(*outcome.keyframe), &mapper_times);
-      } catch (const std::exception& e) {
-        // Inline, the mapper (and the loop closer it calls) fail in the caller's thread: named
-        // as a background thread's failure is, so that a caller handles both alike.
-        throw BackgroundThreadError(std::string("the mapper (inline, sequential) failed: ") +
-                                    e.what());
-      }
-      for (auto& stage : mapper_times.stages) result.times.add(stage.first, stage.second);
-    } else {
-      mapper_->enqueue(std::move(*outcome.keyframe));
-    }
+  if (!options_.sequential) {
+    mapper_->enqueue(std::move(keyframe));
+    return;
   }
-  add_record(record, result.lagged);
-  return result;
+  StageTimes mapper_times;
+  try {
+    mapper_->process(std::move(keyframe), &mapper_times);
+  } catch (const std::exception& e) {
+    // Inline, the mapper (and the loop closer it calls) fail in the caller's thread: named as a
+    // background thread's failure is, so that a caller handles both alike.
+    throw BackgroundThreadError(std::string("the mapper (inline, sequential) failed: ") + e.what());
+  }
+  for (auto& stage : mapper_times.stages) result.times.add(stage.first, stage.second);
 }
 
 void System::add_localize_view(const cv::Mat& depth, const FrameResult& result) {

@@ -280,6 +280,12 @@ class System {
                        const TrackingOutcome& outcome);
   /// The boxes of the last frame's moving objects (for the next frame's feature budget).
   void remember_moving_regions(const FrameResult& result);
+  /// The tracker's outcome for the frame into its result (the objects moved out of `outcome`).
+  void report_tracking(const Frame& frame, TrackingOutcome& outcome, FrameResult& result) const;
+  /// A new keyframe to the mapper, with the colour and depth it keeps: processed inline with
+  /// `sequential` (its stages timed into the result), queued for the mapper's thread otherwise.
+  void hand_over_keyframe(KeyFrameRequest keyframe, const PreparedImages& images,
+                          FrameResult& result);
   void add_record(const FrameRecord& record, const std::optional<StampedPose>& lagged = {});
   std::vector<FrameRecord> records() const;
   /// Lets the mapper and the loop closer finish their queues and stops their threads.
