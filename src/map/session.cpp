@@ -298,85 +298,99 @@ std::optional<std::string> check_observations(const Map& map, const std::string&
   return std::nullopt;
 }
 
+/// One keyframe: its id, features and pose, and every landmark, covisibility and loop edge it
+/// links resolves.
+std::optional<std::string> check_keyframe(const Map& map, KeyFrameId id, const SessionInfo& info) {
+  const KeyFrame& kf = map.keyframes().at(id);
+  const std::string name = kf_name(id);
+  if (kf.id != id) return name + " is stored under id " + std::to_string(kf.id);
+  if (id == kNoId) return "a keyframe has no id";
+  if (kf.features == nullptr) return name + " has no features";
+  const features::FrameFeatures& f = *kf.features;
+  if (!std::isfinite(kf.timestamp)) return name + " has a non-finite timestamp";
+  if (!finite(kf.T_c_w)) return name + " has a non-finite pose or a non-unit rotation";
+  if (auto problem = check_features(f, info)) return name + ": " + *problem;
+  if (kf.landmarks.size() != f.points.size() || kf.line_landmarks.size() != f.lines.size() ||
+      kf.plane_landmarks.size() != f.planes.size())
+    return name + " has " + std::to_string(kf.landmarks.size()) + "/" +
+           std::to_string(kf.line_landmarks.size()) + "/" +
+           std::to_string(kf.plane_landmarks.size()) + " point/line/plane landmark slots for " +
+           std::to_string(f.points.size()) + "/" + std::to_string(f.lines.size()) + "/" +
+           std::to_string(f.planes.size()) + " features";
+  for (PointId p : kf.landmarks)
+    if (p != kNoId && map.point(p) == nullptr)
+      return name + " links point " + std::to_string(p) + ", not in the map";
+  for (LineId l : kf.line_landmarks)
+    if (l != kNoId && map.line(l) == nullptr)
+      return name + " links line " + std::to_string(l) + ", not in the map";
+  for (PlaneId p : kf.plane_landmarks)
+    if (p != kNoId && map.plane(p) == nullptr)
+      return name + " links plane " + std::to_string(p) + ", not in the map";
+  for (const auto& [other, weight] : kf.covisibility)
+    if (other == id || map.keyframe(other) == nullptr || weight <= 0)
+      return name + " has a covisibility edge to " + kf_name(other) + " of weight " +
+             std::to_string(weight);
+  for (KeyFrameId other : kf.loop_edges) {
+    const KeyFrame* o = map.keyframe(other);
+    if (other == id || o == nullptr || o->loop_edges.count(id) == 0)
+      return name + " has a loop edge to " + kf_name(other) + " that is not returned";
+  }
+  return std::nullopt;
+}
+
+/// One kind of landmark (`kind`: "point", "line", "plane"): each stored under its own id, its
+/// numbers finite (`finite_numbers`), its observations within their keyframes' `count_of`
+/// features. `next_free` becomes the largest id + 1.
+template <typename Landmark, typename FiniteNumbers, typename CountOf>
+std::optional<std::string> check_landmarks(const Map& map,
+                                           const std::unordered_map<std::uint64_t, Landmark>& table,
+                                           const std::string& kind, FiniteNumbers finite_numbers,
+                                           CountOf count_of, std::uint64_t& next_free) {
+  next_free = 0;
+  for (const std::uint64_t id : sorted_ids(table)) {
+    const Landmark& landmark = table.at(id);
+    const std::string name = kind + " " + std::to_string(id);
+    if (landmark.id != id) return name + " is stored under id " + std::to_string(landmark.id);
+    if (id == kNoId) return "a " + kind + " has no id";
+    next_free = std::max(next_free, id + 1);
+    if (!finite_numbers(landmark)) return name + " has a non-finite number";
+    if (auto problem = check_observations(map, name, landmark.observations, count_of))
+      return problem;
+  }
+  return std::nullopt;
+}
+
 /// Everything load_session requires of a map beyond its file structure. A map that passes is
 /// safe to use: every id a keyframe or landmark holds resolves, every index is in range.
 std::optional<std::string> check_map(const Map& map, const SessionInfo& info) {
   KeyFrameId max_keyframe = 0;
   bool any_keyframe = false;
   for (const KeyFrameId id : sorted_ids(map.keyframes())) {
-    const KeyFrame& kf = map.keyframes().at(id);
-    const std::string name = kf_name(id);
-    if (kf.id != id) return name + " is stored under id " + std::to_string(kf.id);
-    if (id == kNoId) return "a keyframe has no id";
+    if (auto problem = check_keyframe(map, id, info)) return problem;
     max_keyframe = std::max(max_keyframe, id);
     any_keyframe = true;
-    if (kf.features == nullptr) return name + " has no features";
-    const features::FrameFeatures& f = *kf.features;
-    if (!std::isfinite(kf.timestamp)) return name + " has a non-finite timestamp";
-    if (!finite(kf.T_c_w)) return name + " has a non-finite pose or a non-unit rotation";
-    if (auto problem = check_features(f, info)) return name + ": " + *problem;
-    if (kf.landmarks.size() != f.points.size() || kf.line_landmarks.size() != f.lines.size() ||
-        kf.plane_landmarks.size() != f.planes.size())
-      return name + " has " + std::to_string(kf.landmarks.size()) + "/" +
-             std::to_string(kf.line_landmarks.size()) + "/" +
-             std::to_string(kf.plane_landmarks.size()) + " point/line/plane landmark slots for " +
-             std::to_string(f.points.size()) + "/" + std::to_string(f.lines.size()) + "/" +
-             std::to_string(f.planes.size()) + " features";
-    for (PointId p : kf.landmarks)
-      if (p != kNoId && map.point(p) == nullptr)
-        return name + " links point " + std::to_string(p) + ", not in the map";
-    for (LineId l : kf.line_landmarks)
-      if (l != kNoId && map.line(l) == nullptr)
-        return name + " links line " + std::to_string(l) + ", not in the map";
-    for (PlaneId p : kf.plane_landmarks)
-      if (p != kNoId && map.plane(p) == nullptr)
-        return name + " links plane " + std::to_string(p) + ", not in the map";
-    for (const auto& [other, weight] : kf.covisibility)
-      if (other == id || map.keyframe(other) == nullptr || weight <= 0)
-        return name + " has a covisibility edge to " + kf_name(other) + " of weight " +
-               std::to_string(weight);
-    for (KeyFrameId other : kf.loop_edges) {
-      const KeyFrame* o = map.keyframe(other);
-      if (other == id || o == nullptr || o->loop_edges.count(id) == 0)
-        return name + " has a loop edge to " + kf_name(other) + " that is not returned";
-    }
   }
-  const auto points_of = [](const KeyFrame& kf) { return kf.features->points.size(); };
-  const auto lines_of = [](const KeyFrame& kf) { return kf.features->lines.size(); };
-  const auto planes_of = [](const KeyFrame& kf) { return kf.features->planes.size(); };
-  PointId max_point = 0;
-  for (const PointId id : sorted_ids(map.points())) {
-    const MapPoint& mp = map.points().at(id);
-    const std::string name = "point " + std::to_string(id);
-    if (mp.id != id) return name + " is stored under id " + std::to_string(mp.id);
-    if (id == kNoId) return "a point has no id";
-    max_point = std::max(max_point, id + 1);
-    if (!mp.p_w.allFinite() || !mp.normal.allFinite() || !std::isfinite(mp.min_distance) ||
-        !std::isfinite(mp.max_distance))
-      return name + " has a non-finite number";
-    if (auto problem = check_observations(map, name, mp.observations, points_of)) return problem;
-  }
-  LineId max_line = 0;
-  for (const LineId id : sorted_ids(map.lines())) {
-    const MapLine& ml = map.lines().at(id);
-    const std::string name = "line " + std::to_string(id);
-    if (ml.id != id) return name + " is stored under id " + std::to_string(ml.id);
-    if (id == kNoId) return "a line has no id";
-    max_line = std::max(max_line, id + 1);
-    if (!ml.start_w.allFinite() || !ml.end_w.allFinite()) return name + " has a non-finite number";
-    if (auto problem = check_observations(map, name, ml.observations, lines_of)) return problem;
-  }
-  PlaneId max_plane = 0;
-  for (const PlaneId id : sorted_ids(map.planes())) {
-    const MapPlane& mp = map.planes().at(id);
-    const std::string name = "plane " + std::to_string(id);
-    if (mp.id != id) return name + " is stored under id " + std::to_string(mp.id);
-    if (id == kNoId) return "a plane has no id";
-    max_plane = std::max(max_plane, id + 1);
-    if (!mp.normal.allFinite() || !std::isfinite(mp.d) || !finite(mp.hull))
-      return name + " has a non-finite number";
-    if (auto problem = check_observations(map, name, mp.observations, planes_of)) return problem;
-  }
+  std::uint64_t max_point = 0, max_line = 0, max_plane = 0;
+  if (auto problem = check_landmarks(
+          map, map.points(), "point",
+          [](const MapPoint& mp) {
+            return mp.p_w.allFinite() && mp.normal.allFinite() && std::isfinite(mp.min_distance) &&
+                   std::isfinite(mp.max_distance);
+          },
+          [](const KeyFrame& kf) { return kf.features->points.size(); }, max_point))
+    return problem;
+  if (auto problem = check_landmarks(
+          map, map.lines(), "line",
+          [](const MapLine& ml) { return ml.start_w.allFinite() && ml.end_w.allFinite(); },
+          [](const KeyFrame& kf) { return kf.features->lines.size(); }, max_line))
+    return problem;
+  if (auto problem = check_landmarks(
+          map, map.planes(), "plane",
+          [](const MapPlane& mp) {
+            return mp.normal.allFinite() && std::isfinite(mp.d) && finite(mp.hull);
+          },
+          [](const KeyFrame& kf) { return kf.features->planes.size(); }, max_plane))
+    return problem;
   for (const KeyFrameId id : sorted_ids(map.erased_keyframes())) {
     const std::string name = "culled " + kf_name(id);
     if (id == kNoId) return "a culled keyframe has no id";
