@@ -895,38 +895,43 @@ void Tracker::update_local_map(const Associations& assoc, const SE3& T_c_w) {
   // Keyframes near the camera that look the same way, linked by covisibility or not: when the
   // camera comes back to a place, the old landmarks are matched again instead of being mapped a
   // second time, which closes small loops without a separate loop detector.
-  if (options_.spatial_keyframes > 0) {
-    const SE3 T_w_c = T_c_w.inverse();
-    const Eigen::Vector3d center = T_w_c.translation();
-    const Eigen::Vector3d axis = T_w_c.rotation().col(2);
-    const double min_cos = std::cos(options_.spatial_max_angle_deg * M_PI / 180.0);
-    std::vector<std::pair<double, map::KeyFrameId>> nearby;
-    for (const auto& [id, kf] : map_.keyframes()) {
-      if (chosen.count(id) != 0) continue;
-      const SE3 kf_T_w_c = kf.T_w_c();
-      const double distance = (kf_T_w_c.translation() - center).norm();
-      if (distance > options_.spatial_radius) continue;
-      if (kf_T_w_c.rotation().col(2).dot(axis) < min_cos) continue;
-      nearby.emplace_back(distance, id);
-    }
-    std::sort(nearby.begin(), nearby.end());
-    const auto n = std::min(nearby.size(), static_cast<std::size_t>(options_.spatial_keyframes));
-    for (std::size_t k = 0; k < n; ++k) {
-      local_keyframes.push_back(nearby[k].second);
-      chosen.insert(nearby[k].second);
-    }
-  }
+  if (options_.spatial_keyframes > 0) add_nearby_keyframes(T_c_w, chosen);
   if (local_keyframes.empty() && map_.last_keyframe_id() != map::kNoId &&
       map_.keyframe(map_.last_keyframe_id()) != nullptr) {
     local_keyframes.push_back(map_.last_keyframe_id());
     reference_ = map_.last_keyframe_id();
   }
-  // Their landmarks, each once.
+  collect_local_landmarks();
+}
+
+void Tracker::add_nearby_keyframes(const SE3& T_c_w, std::unordered_set<map::KeyFrameId>& chosen) {
+  const SE3 T_w_c = T_c_w.inverse();
+  const Eigen::Vector3d center = T_w_c.translation();
+  const Eigen::Vector3d axis = T_w_c.rotation().col(2);
+  const double min_cos = std::cos(options_.spatial_max_angle_deg * M_PI / 180.0);
+  std::vector<std::pair<double, map::KeyFrameId>> nearby;
+  for (const auto& [id, kf] : map_.keyframes()) {
+    if (chosen.count(id) != 0) continue;
+    const SE3 kf_T_w_c = kf.T_w_c();
+    const double distance = (kf_T_w_c.translation() - center).norm();
+    if (distance > options_.spatial_radius) continue;
+    if (kf_T_w_c.rotation().col(2).dot(axis) < min_cos) continue;
+    nearby.emplace_back(distance, id);
+  }
+  std::sort(nearby.begin(), nearby.end());
+  const auto n = std::min(nearby.size(), static_cast<std::size_t>(options_.spatial_keyframes));
+  for (std::size_t k = 0; k < n; ++k) {
+    local_.keyframes.push_back(nearby[k].second);
+    chosen.insert(nearby[k].second);
+  }
+}
+
+void Tracker::collect_local_landmarks() {
   local_.points.clear();
   local_.lines.clear();
   std::unordered_set<map::PointId> seen;
   std::unordered_set<map::LineId> seen_lines;
-  for (map::KeyFrameId id : local_keyframes) {
+  for (map::KeyFrameId id : local_.keyframes) {
     const map::KeyFrame* kf = map_.keyframe(id);
     if (kf == nullptr) continue;
     for (map::PointId p : kf->landmarks)

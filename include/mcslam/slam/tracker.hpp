@@ -305,6 +305,11 @@ class Tracker {
   /// Inliers as tracking success counts them: points + lines + plane_inlier_weight * planes.
   int weighted_inliers(const Associations& assoc) const;
   void update_local_map(const Associations& assoc, const SE3& T_c_w);
+  /// Keyframes within tracker.spatial_radius of the camera that look its way (not yet `chosen`),
+  /// the nearest tracker.spatial_keyframes of them, to the local keyframes.
+  void add_nearby_keyframes(const SE3& T_c_w, std::unordered_set<map::KeyFrameId>& chosen);
+  /// The local keyframes' point and line landmarks, each once.
+  void collect_local_landmarks();
   bool need_keyframe(const Frame& frame, const Associations& assoc, bool mapper_idle,
                      std::size_t mapper_queue) const;
   KeyFrameRequest make_keyframe(const Frame& frame, const Associations& assoc, const SE3& T_c_w);
