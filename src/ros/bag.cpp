@@ -109,6 +109,12 @@ struct BagSource::Impl {
   void scan();
   void add_image(ImageTopic& topic, const rosbag::MessageInstance& m, bool is_depth);
   void add_groundtruth(const rosbag::MessageInstance& m);
+  /// The first camera_info message's intrinsics to the hints (a warning when it cannot be read).
+  void read_camera_info(const rosbag::MessageInstance& m);
+  /// The settings message's YAML to the hints.
+  void read_settings(const rosbag::MessageInstance& m);
+  /// Both image topics have messages, of one size.
+  void check_images() const;
   void associate();
 };
 
@@ -208,31 +214,9 @@ void BagSource::Impl::scan() {
       } else if (topic == t.camera_info) {
         if (have_info) continue;
         have_info = true;
-        const auto info = m.instantiate<sensor_msgs::CameraInfo>();
-        if (!info) {  // another type, or an old definition of CameraInfo
-          warnings.push_back(file_error(path, "topic '" + topic + "' (" + m.getDataType() +
-                                                  ", md5 " + m.getMD5Sum() +
-                                                  ") is not a sensor_msgs/CameraInfo this ROS "
-                                                  "reads: intrinsics not taken from it"));
-          continue;
-        }
-        bool ignored_distortion = false;
-        if (const auto k = detail::intrinsics_of(*info, &ignored_distortion)) {
-          if (ignored_distortion)
-            warnings.push_back(file_error(path, "camera_info distortion model '" +
-                                                    info->distortion_model +
-                                                    "' is not plumb_bob: distortion ignored"));
-          hints.intrinsics = *k;
-          hints.intrinsics_name = path + ":" + topic;
-        }
+        read_camera_info(m);
       } else if (topic == t.settings) {
-        if (hints.settings_yaml) continue;
-        const auto text = m.instantiate<std_msgs::String>();
-        if (!text)
-          throw InputError(file_error(path, "topic '" + topic + "' has type " + m.getDataType() +
-                                                ", expected std_msgs/String"));
-        hints.settings_yaml = text->data;
-        hints.settings_name = path + ":" + topic;
+        if (!hints.settings_yaml) read_settings(m);
       } else if (topic == t.groundtruth) {
         if (const auto tf = m.instantiate<tf2_msgs::TFMessage>())
           for (const auto& x : tf->transforms)
@@ -247,15 +231,7 @@ void BagSource::Impl::scan() {
                                             "' (truncated or corrupt bag?): " + e.what()));
     }
   }
-  for (const auto& [topic, images] : {std::pair{&t.rgb, &rgb}, std::pair{&t.depth, &depth}})
-    if (images->messages.empty())
-      throw InputError(file_error(path, "topic '" + *topic + "' has no messages"));
-  if (depth.width != rgb.width || depth.height != rgb.height)
-    throw InputError(file_error(
-        path, "depth images ('" + t.depth + "') are " + std::to_string(depth.width) + "x" +
-                  std::to_string(depth.height) + " but the colour images ('" + t.rgb + "') are " +
-                  std::to_string(rgb.width) + "x" + std::to_string(rgb.height) +
-                  " (register the depth to the colour camera)"));
+  check_images();
   if (!t.groundtruth.empty() && types.count(t.groundtruth) && groundtruth.empty() &&
       !tf_pairs.empty()) {
     std::string seen;
@@ -265,6 +241,49 @@ void BagSource::Impl::scan() {
                                             t.camera_frame + " (it has " + seen + ")"));
   }
   io::sort_by_time_unique(groundtruth);
+}
+
+void BagSource::Impl::read_camera_info(const rosbag::MessageInstance& m) {
+  const std::string& topic = m.getTopic();
+  const auto info = m.instantiate<sensor_msgs::CameraInfo>();
+  if (!info) {  // another type, or an old definition of CameraInfo
+    warnings.push_back(file_error(path, "topic '" + topic + "' (" + m.getDataType() + ", md5 " +
+                                            m.getMD5Sum() +
+                                            ") is not a sensor_msgs/CameraInfo this ROS "
+                                            "reads: intrinsics not taken from it"));
+    return;
+  }
+  bool ignored_distortion = false;
+  if (const auto k = detail::intrinsics_of(*info, &ignored_distortion)) {
+    if (ignored_distortion)
+      warnings.push_back(file_error(path, "camera_info distortion model '" +
+                                              info->distortion_model +
+                                              "' is not plumb_bob: distortion ignored"));
+    hints.intrinsics = *k;
+    hints.intrinsics_name = path + ":" + topic;
+  }
+}
+
+void BagSource::Impl::read_settings(const rosbag::MessageInstance& m) {
+  const auto text = m.instantiate<std_msgs::String>();
+  if (!text)
+    throw InputError(file_error(path, "topic '" + m.getTopic() + "' has type " + m.getDataType() +
+                                          ", expected std_msgs/String"));
+  hints.settings_yaml = text->data;
+  hints.settings_name = path + ":" + m.getTopic();
+}
+
+void BagSource::Impl::check_images() const {
+  const TopicOptions& t = options.topics;
+  for (const auto& [topic, images] : {std::pair{&t.rgb, &rgb}, std::pair{&t.depth, &depth}})
+    if (images->messages.empty())
+      throw InputError(file_error(path, "topic '" + *topic + "' has no messages"));
+  if (depth.width != rgb.width || depth.height != rgb.height)
+    throw InputError(file_error(
+        path, "depth images ('" + t.depth + "') are " + std::to_string(depth.width) + "x" +
+                  std::to_string(depth.height) + " but the colour images ('" + t.rgb + "') are " +
+                  std::to_string(rgb.width) + "x" + std::to_string(rgb.height) +
+                  " (register the depth to the colour camera)"));
 }
 
 void BagSource::Impl::associate() {
