@@ -175,52 +175,42 @@ double Scene::clearance(const Eigen::Vector3d& p_w, double t) const {
   return d;
 }
 
-Scene make_room_scene(const SynthOptions& options) {
-  require_valid(options);
-  Scene scene;
-  for (int axis = 0; axis < 2; ++axis) {
-    scene.room_min[axis] *= options.room_scale;
-    scene.room_max[axis] *= options.room_scale;
-  }
-  const Eigen::Vector3d lo = scene.room_min, hi = scene.room_max;
+namespace {
+
+Surface make_surface(std::string name, const Eigen::Vector3d& origin, const Eigen::Vector3d& u,
+                     const Eigen::Vector3d& v, double size_u, double size_v) {
+  Surface s;
+  s.name = std::move(name);
+  s.origin = origin;
+  s.u_axis = u;
+  s.v_axis = v;
+  s.size_u = size_u;
+  s.size_v = size_v;
+  return s;
+}
+
+/// The floor, the ceiling and the four walls of the box [lo, hi]; normals (u x v) into the room.
+std::vector<Surface> room_surfaces(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi) {
   const Eigen::Vector3d size = hi - lo;
   const Eigen::Vector3d ex = Eigen::Vector3d::UnitX(), ey = Eigen::Vector3d::UnitY(),
                         ez = Eigen::Vector3d::UnitZ();
-  auto surface = [](std::string name, Eigen::Vector3d origin, Eigen::Vector3d u, Eigen::Vector3d v,
-                    double su, double sv) {
-    Surface s;
-    s.name = std::move(name);
-    s.origin = origin;
-    s.u_axis = u;
-    s.v_axis = v;
-    s.size_u = su;
-    s.size_v = sv;
-    return s;
+  return {
+      make_surface("floor", lo, ex, ey, size.x(), size.y()),
+      make_surface("ceiling", Eigen::Vector3d(lo.x(), lo.y(), hi.z()), ey, ex, size.y(), size.x()),
+      make_surface("wall_x_min", lo, ey, ez, size.y(), size.z()),
+      make_surface("wall_x_max", Eigen::Vector3d(hi.x(), lo.y(), lo.z()), ez, ey, size.z(),
+                   size.y()),
+      make_surface("wall_y_min", lo, ez, ex, size.z(), size.x()),
+      make_surface("wall_y_max", Eigen::Vector3d(lo.x(), hi.y(), lo.z()), ex, ez, size.x(),
+                   size.z()),
   };
-  // Normals (u x v) point into the room.
-  scene.surfaces = {
-      surface("floor", lo, ex, ey, size.x(), size.y()),
-      surface("ceiling", Eigen::Vector3d(lo.x(), lo.y(), hi.z()), ey, ex, size.y(), size.x()),
-      surface("wall_x_min", lo, ey, ez, size.y(), size.z()),
-      surface("wall_x_max", Eigen::Vector3d(hi.x(), lo.y(), lo.z()), ez, ey, size.z(), size.y()),
-      surface("wall_y_min", lo, ez, ex, size.z(), size.x()),
-      surface("wall_y_max", Eigen::Vector3d(lo.x(), hi.y(), lo.z()), ex, ez, size.x(), size.z()),
-  };
-  const std::uint64_t seed = detail::hash_combine(options.seed, 0x5CE7E);
-  std::vector<TextureJob> jobs;
-  for (std::size_t i = 0; i < scene.surfaces.size(); ++i) {
-    Surface& s = scene.surfaces[i];
-    s.texture_id = static_cast<int>(jobs.size());
-    const detail::SurfaceKind kind = i == 0   ? detail::SurfaceKind::kFloor
-                                     : i == 1 ? detail::SurfaceKind::kCeiling
-                                              : detail::SurfaceKind::kWall;
-    jobs.push_back({{{s.size_u, s.size_v}}, kind, detail::hash_combine(seed, jobs.size())});
-  }
+}
 
-  // Objects stand on the floor, mostly along the +x wall and the +-y walls (where the camera
-  // looks), all at least ~1 m from the camera path. Their COCO class names roughly fit their
-  // shapes, so that an oracle detector labels them as (static) objects.
-  const BoxSpec specs[] = {
+/// The static furniture. Objects stand on the floor, mostly along the +x wall and the +-y walls
+/// (where the camera looks), all at least ~1 m from the camera path. Their COCO class names
+/// roughly fit their shapes, so that an oracle detector labels them as (static) objects.
+std::vector<BoxSpec> furniture() {
+  return {
       {"dining table", {2.2, 1.0, 0.375}, {0.4, 0.6, 0.375}, 0.0},
       {"microwave", {2.2, 1.1, 0.87}, {0.15, 0.2, 0.12}, -15.0},  // on the table
       {"refrigerator", {2.6, -0.3, 0.6}, {0.25, 0.35, 0.6}, 0.0},
@@ -230,9 +220,17 @@ Scene make_room_scene(const SynthOptions& options) {
       {"sink", {-0.9, 1.95, 0.45}, {0.3, 0.3, 0.45}, 30.0},
       {"couch", {-2.2, -1.0, 0.4}, {0.3, 0.5, 0.4}, 0.0},
   };
-  // Each object's texture is the next job, with one face per layer; the seeds depend only on the
-  // job's position, so adding the moving objects last leaves every other texture unchanged.
-  auto add_object = [&](SceneObject object) {
+}
+
+/// A scene and the texture jobs of its surfaces and objects, in order.
+struct SceneBuild {
+  Scene scene;
+  std::vector<TextureJob> jobs;
+  std::uint64_t seed = 0;
+
+  /// Each object's texture is the next job, with one face per layer; the seeds depend only on
+  /// the job's position, so adding the moving objects last leaves every other texture unchanged.
+  void add_object(SceneObject object) {
     object.texture_id = static_cast<int>(jobs.size());
     TextureJob job{{}, detail::SurfaceKind::kBoxFace, detail::hash_combine(seed, jobs.size())};
     for (int f = 0; f < 6; ++f) {
@@ -242,31 +240,58 @@ Scene make_room_scene(const SynthOptions& options) {
     }
     jobs.push_back(std::move(job));
     scene.objects.push_back(std::move(object));
-  };
-  for (const BoxSpec& spec : specs) {
-    SceneObject object;
-    object.class_name = spec.class_name;
-    object.half_extents = spec.half_extents;
-    const SE3 T_w_o(Eigen::Quaterniond(Eigen::AngleAxisd(spec.yaw_deg * kDeg, ez)), spec.centre);
-    object.pose_at = [T_w_o](double) { return T_w_o; };
-    add_object(std::move(object));
   }
-  if (options.dynamic.enabled) {
-    // Person 1 and the chair keep their indices (8 and 9) and textures whatever the crowd; the
-    // other people follow them.
-    const int people = options.dynamic.people_in_scene();
-    const int first_undetected = people - options.dynamic.undetected_people + 1;
+
+  /// The people and the chair of options.dynamic. Person 1 and the chair keep their indices (8
+  /// and 9) and textures whatever the crowd; the other people follow them.
+  void add_movers(const SynthOptions::DynamicObjects& dynamic) {
+    const int people = dynamic.people_in_scene();
+    const int first_undetected = people - dynamic.undetected_people + 1;
     auto add_person = [&](int number, SceneObject person) {
       person.detectable = number < first_undetected;
       add_object(std::move(person));
     };
-    if (people >= 1) add_person(1, detail::make_person(options.dynamic));
-    if (options.dynamic.chair) add_object(detail::make_chair(options.dynamic));
+    if (people >= 1) add_person(1, detail::make_person(dynamic));
+    if (dynamic.chair) add_object(detail::make_chair(dynamic));
     for (int number = 2; number <= people; ++number)
-      add_person(number, detail::make_crowd_person(number, options.dynamic));
+      add_person(number, detail::make_crowd_person(number, dynamic));
   }
-  scene.textures = make_textures(jobs, options.texture);
-  return scene;
+};
+
+}  // namespace
+
+Scene make_room_scene(const SynthOptions& options) {
+  require_valid(options);
+  SceneBuild build;
+  Scene& scene = build.scene;
+  for (int axis = 0; axis < 2; ++axis) {
+    scene.room_min[axis] *= options.room_scale;
+    scene.room_max[axis] *= options.room_scale;
+  }
+  scene.surfaces = room_surfaces(scene.room_min, scene.room_max);
+  build.seed = detail::hash_combine(options.seed, 0x5CE7E);
+  for (std::size_t i = 0; i < scene.surfaces.size(); ++i) {
+    Surface& s = scene.surfaces[i];
+    s.texture_id = static_cast<int>(build.jobs.size());
+    const detail::SurfaceKind kind = i == 0   ? detail::SurfaceKind::kFloor
+                                     : i == 1 ? detail::SurfaceKind::kCeiling
+                                              : detail::SurfaceKind::kWall;
+    build.jobs.push_back(
+        {{{s.size_u, s.size_v}}, kind, detail::hash_combine(build.seed, build.jobs.size())});
+  }
+  for (const BoxSpec& spec : furniture()) {
+    SceneObject object;
+    object.class_name = spec.class_name;
+    object.half_extents = spec.half_extents;
+    const SE3 T_w_o(
+        Eigen::Quaterniond(Eigen::AngleAxisd(spec.yaw_deg * kDeg, Eigen::Vector3d::UnitZ())),
+        spec.centre);
+    object.pose_at = [T_w_o](double) { return T_w_o; };
+    build.add_object(std::move(object));
+  }
+  if (options.dynamic.enabled) build.add_movers(options.dynamic);
+  scene.textures = make_textures(build.jobs, options.texture);
+  return std::move(scene);
 }
 
 namespace {
