@@ -123,6 +123,89 @@ int split_node(const Node& node, const std::vector<Candidate>& cands, std::vecto
   return n;
 }
 
+/// Square-ish first nodes over the region, each holding the candidates inside it (their indices
+/// laid out node by node in idx).
+std::vector<Node> initial_nodes(const std::vector<Candidate>& cands, float x0, float y0, float x1,
+                                float y1, std::vector<int>& idx) {
+  const float w = x1 - x0;
+  const float h = y1 - y0;
+  const int nx = std::max(1, static_cast<int>(std::lround(w / h)));
+  const int ny = std::max(1, static_cast<int>(std::lround(h / w)));
+  std::vector<std::vector<int>> buckets(static_cast<std::size_t>(nx * ny));
+  for (int i = 0; i < static_cast<int>(cands.size()); ++i) {
+    const int bx = std::min(nx - 1, static_cast<int>((float(cands[i].x) - x0) / w * nx));
+    const int by = std::min(ny - 1, static_cast<int>((float(cands[i].y) - y0) / h * ny));
+    buckets[static_cast<std::size_t>(by * nx + bx)].push_back(i);
+  }
+  std::vector<Node> nodes;
+  int pos = 0;
+  for (int by = 0; by < ny; ++by) {
+    for (int bx = 0; bx < nx; ++bx) {
+      const auto& bucket = buckets[static_cast<std::size_t>(by * nx + bx)];
+      if (bucket.empty()) continue;
+      std::copy(bucket.begin(), bucket.end(), idx.begin() + pos);
+      nodes.push_back({x0 + w * bx / nx, y0 + h * by / ny, x0 + w * (bx + 1) / nx,
+                       y0 + h * (by + 1) / ny, pos, pos + static_cast<int>(bucket.size())});
+      pos += static_cast<int>(bucket.size());
+    }
+  }
+  return nodes;
+}
+
+/// The last round of splits: the most populated nodes first, until there are `quota` nodes (or
+/// none can be split).
+void split_most_populated(std::vector<Node>& nodes, const std::vector<Candidate>& cands,
+                          std::vector<int>& idx, int quota) {
+  std::array<Node, 4> children;
+  auto less = [&](int a, int b) {
+    const int ca = nodes[static_cast<std::size_t>(a)].count();
+    const int cb = nodes[static_cast<std::size_t>(b)].count();
+    return ca != cb ? ca < cb : a > b;
+  };
+  std::priority_queue<int, std::vector<int>, decltype(less)> heap(less);
+  for (int i = 0; i < static_cast<int>(nodes.size()); ++i)
+    if (nodes[static_cast<std::size_t>(i)].splittable()) heap.push(i);
+  while (static_cast<int>(nodes.size()) < quota && !heap.empty()) {
+    const int top = heap.top();
+    heap.pop();
+    const int k = split_node(nodes[static_cast<std::size_t>(top)], cands, idx, children);
+    nodes[static_cast<std::size_t>(top)] = children[0];
+    if (children[0].splittable()) heap.push(top);
+    for (int c = 1; c < k; ++c) {
+      nodes.push_back(children[static_cast<std::size_t>(c)]);
+      if (children[static_cast<std::size_t>(c)].splittable())
+        heap.push(static_cast<int>(nodes.size()) - 1);
+    }
+  }
+}
+
+/// Splits the nodes holding more than one corner, breadth first, until there are `quota` nodes.
+void split_nodes(std::vector<Node>& nodes, const std::vector<Candidate>& cands,
+                 std::vector<int>& idx, int quota) {
+  std::array<Node, 4> children;
+  std::vector<Node> next;
+  while (static_cast<int>(nodes.size()) < quota) {
+    int splittable = 0;
+    for (const Node& n : nodes) splittable += n.splittable() ? 1 : 0;
+    if (splittable == 0) return;
+    if (static_cast<int>(nodes.size()) + 3 * splittable > quota) {
+      split_most_populated(nodes, cands, idx, quota);
+      return;
+    }
+    // A whole round of splits cannot overshoot the quota: split every node.
+    next.clear();
+    for (const Node& n : nodes) {
+      if (!n.splittable()) {
+        next.push_back(n);
+        continue;
+      }
+      const int k = split_node(n, cands, idx, children);
+      next.insert(next.end(), children.begin(), children.begin() + k);
+    }
+    nodes.swap(next);
+  }
+}
+
 /// Keeps at most `quota` candidates spread evenly over the region by a quadtree: nodes holding
 /// more than one corner are split (breadth first) until there are `quota` nodes; the strongest
 /// corner of every node is kept.
@@ -130,78 +213,10 @@ std::vector<Candidate> distribute(const std::vector<Candidate>& cands, float x0,
                                   float y1, int quota) {
   if (quota <= 0 || cands.empty()) return {};
   if (static_cast<int>(cands.size()) <= quota) return cands;
-
   std::vector<int> idx(cands.size());
   std::iota(idx.begin(), idx.end(), 0);
-  std::vector<Node> nodes;
-  {
-    // Square-ish initial nodes.
-    const float w = x1 - x0;
-    const float h = y1 - y0;
-    const int nx = std::max(1, static_cast<int>(std::lround(w / h)));
-    const int ny = std::max(1, static_cast<int>(std::lround(h / w)));
-    std::vector<std::vector<int>> buckets(static_cast<std::size_t>(nx * ny));
-    for (int i = 0; i < static_cast<int>(cands.size()); ++i) {
-      const int bx = std::min(nx - 1, static_cast<int>((float(cands[i].x) - x0) / w * nx));
-      const int by = std::min(ny - 1, static_cast<int>((float(cands[i].y) - y0) / h * ny));
-      buckets[static_cast<std::size_t>(by * nx + bx)].push_back(i);
-    }
-    int pos = 0;
-    for (int by = 0; by < ny; ++by) {
-      for (int bx = 0; bx < nx; ++bx) {
-        const auto& bucket = buckets[static_cast<std::size_t>(by * nx + bx)];
-        if (bucket.empty()) continue;
-        std::copy(bucket.begin(), bucket.end(), idx.begin() + pos);
-        nodes.push_back({x0 + w * bx / nx, y0 + h * by / ny, x0 + w * (bx + 1) / nx,
-                         y0 + h * (by + 1) / ny, pos, pos + static_cast<int>(bucket.size())});
-        pos += static_cast<int>(bucket.size());
-      }
-    }
-  }
-
-  std::array<Node, 4> children;
-  std::vector<Node> next;
-  while (static_cast<int>(nodes.size()) < quota) {
-    int splittable = 0;
-    for (const Node& n : nodes) splittable += n.splittable() ? 1 : 0;
-    if (splittable == 0) break;
-    if (static_cast<int>(nodes.size()) + 3 * splittable <= quota) {
-      // A whole round of splits cannot overshoot the quota: split every node.
-      next.clear();
-      for (const Node& n : nodes) {
-        if (!n.splittable()) {
-          next.push_back(n);
-          continue;
-        }
-        const int k = split_node(n, cands, idx, children);
-        next.insert(next.end(), children.begin(), children.begin() + k);
-      }
-      nodes.swap(next);
-      continue;
-    }
-    // Last round: split the most populated nodes first until the quota is reached.
-    auto less = [&](int a, int b) {
-      const int ca = nodes[static_cast<std::size_t>(a)].count();
-      const int cb = nodes[static_cast<std::size_t>(b)].count();
-      return ca != cb ? ca < cb : a > b;
-    };
-    std::priority_queue<int, std::vector<int>, decltype(less)> heap(less);
-    for (int i = 0; i < static_cast<int>(nodes.size()); ++i)
-      if (nodes[static_cast<std::size_t>(i)].splittable()) heap.push(i);
-    while (static_cast<int>(nodes.size()) < quota && !heap.empty()) {
-      const int top = heap.top();
-      heap.pop();
-      const int k = split_node(nodes[static_cast<std::size_t>(top)], cands, idx, children);
-      nodes[static_cast<std::size_t>(top)] = children[0];
-      if (children[0].splittable()) heap.push(top);
-      for (int c = 1; c < k; ++c) {
-        nodes.push_back(children[static_cast<std::size_t>(c)]);
-        if (children[static_cast<std::size_t>(c)].splittable())
-          heap.push(static_cast<int>(nodes.size()) - 1);
-      }
-    }
-    break;
-  }
+  std::vector<Node> nodes = initial_nodes(cands, x0, y0, x1, y1, idx);
+  split_nodes(nodes, cands, idx, quota);
 
   std::vector<Candidate> kept;
   kept.reserve(nodes.size());
