@@ -194,11 +194,9 @@ int rotate_round(int a, int b) {  // (a - b) / 1024, rounded half up (floor of a
   return (a - b + 512) >> 10;
 }
 
-std::array<TestPair, 256> generate_pattern() {
-  std::mt19937_64 rng(kSeed);
-
-  // Candidate tests: pairs of points uniform in the circular patch, at least kMinBaseline apart
-  // (very short tests flip with noise).
+/// Candidate tests: pairs of points uniform in the circular patch, at least kMinBaseline apart
+/// (very short tests flip with noise).
+std::vector<TestPair> candidate_tests(std::mt19937_64& rng) {
   std::vector<TestPair> candidates;
   candidates.reserve(kNumCandidates);
   auto point = [&](int& x, int& y) {
@@ -216,53 +214,73 @@ std::array<TestPair, 256> generate_pattern() {
     if (dx * dx + dy * dy < kMinBaseline * kMinBaseline) continue;
     candidates.push_back(t);
   }
+  return candidates;
+}
 
-  // Outcomes of every candidate on every training patch, as bit vectors.
+/// Every candidate's outcome on every training patch, as bit vectors, and its count of ones.
+struct Outcomes {
+  std::size_t patches = 0;
+  std::size_t words = 0;  // 64-bit words per candidate
+  std::vector<std::uint64_t> bits;
+  std::vector<std::int64_t> ones;
+
+  /// Squared correlation of two candidates' outcomes (exact integers to the last division).
+  double squared_correlation(std::size_t a, std::size_t b) const {
+    const auto n = static_cast<std::int64_t>(patches);
+    std::int64_t n11 = 0;
+    for (std::size_t w = 0; w < words; ++w)
+      n11 += std::popcount(bits[a * words + w] & bits[b * words + w]);
+    const std::int64_t cov = n * n11 - ones[a] * ones[b];
+    const std::int64_t var = (ones[a] * (n - ones[a])) * (ones[b] * (n - ones[b]));
+    return var == 0 ? 0.0 : static_cast<double>(cov * cov) / static_cast<double>(var);
+  }
+};
+
+Outcomes outcomes_of(const std::vector<TestPair>& candidates, std::mt19937_64& rng) {
   const GreyImage texture = synthetic_texture(rng);
   const std::vector<TrainingPatch> patches = training_patches(texture);
   const GreyImage smooth = binomial_smooth(texture, 4);  // sigma 2, like the descriptor's blur
-  const std::size_t num_patches = patches.size();
-  const std::size_t words = (num_patches + 63) / 64;
-  std::vector<std::uint64_t> outcomes(candidates.size() * words, 0);
-  std::vector<std::int64_t> ones(candidates.size(), 0);
+  Outcomes out;
+  out.patches = patches.size();
+  out.words = (out.patches + 63) / 64;
+  out.bits.assign(candidates.size() * out.words, 0);
+  out.ones.assign(candidates.size(), 0);
   for (std::size_t c = 0; c < candidates.size(); ++c) {
     const TestPair& t = candidates[c];
-    for (std::size_t p = 0; p < num_patches; ++p) {
+    for (std::size_t p = 0; p < out.patches; ++p) {
       const TrainingPatch& tp = patches[p];
       const int ax = tp.x + rotate_round(tp.cos1024 * t.x1, tp.sin1024 * t.y1);
       const int ay = tp.y + rotate_round(tp.sin1024 * t.x1, -tp.cos1024 * t.y1);
       const int bx = tp.x + rotate_round(tp.cos1024 * t.x2, tp.sin1024 * t.y2);
       const int by = tp.y + rotate_round(tp.sin1024 * t.x2, -tp.cos1024 * t.y2);
       if (smooth.at(ax, ay) < smooth.at(bx, by)) {
-        outcomes[c * words + p / 64] |= std::uint64_t{1} << (p % 64);
-        ++ones[c];
+        out.bits[c * out.words + p / 64] |= std::uint64_t{1} << (p % 64);
+        ++out.ones[c];
       }
     }
   }
+  return out;
+}
 
-  // Greedy selection (as for rBRIEF): tests with the most balanced outcome first; a test is
-  // accepted when its outcome mean is within kMaxBias of 1/2 and its correlation with every
-  // accepted test is at most k / 20, with k starting at 4 (0.2) and relaxed until 256 tests are
-  // found. Correlations are ratios of exact integers, so the choice is platform-independent.
-  const std::int64_t n = static_cast<std::int64_t>(num_patches);
-  std::vector<std::size_t> order(candidates.size());
+/// Greedy selection (as for rBRIEF): tests with the most balanced outcome first; a test is
+/// accepted when its outcome mean is within kMaxBias of 1/2 and its correlation with every
+/// accepted test is at most k / 20, with k starting at 4 (0.2) and relaxed until 256 tests are
+/// found. Correlations are ratios of exact integers, so the choice is platform-independent.
+/// Returns the accepted candidates' indices (k = 20 accepts any test, so 256 are always found).
+std::vector<std::size_t> select_tests(const Outcomes& outcomes) {
+  const std::size_t count = outcomes.ones.size();
+  const auto n = static_cast<std::int64_t>(outcomes.patches);
+  const std::vector<std::int64_t>& ones = outcomes.ones;
+  std::vector<std::size_t> order(count);
   std::iota(order.begin(), order.end(), std::size_t{0});
   std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
     return std::abs(2 * ones[a] - n) < std::abs(2 * ones[b] - n);
   });
-  auto squared_correlation = [&](std::size_t a, std::size_t b) {
-    std::int64_t n11 = 0;
-    for (std::size_t w = 0; w < words; ++w)
-      n11 += std::popcount(outcomes[a * words + w] & outcomes[b * words + w]);
-    const std::int64_t cov = n * n11 - ones[a] * ones[b];
-    const std::int64_t var = (ones[a] * (n - ones[a])) * (ones[b] * (n - ones[b]));
-    return var == 0 ? 0.0 : static_cast<double>(cov * cov) / static_cast<double>(var);
-  };
   std::vector<std::size_t> accepted;
-  std::vector<bool> taken(candidates.size(), false);
+  std::vector<bool> taken(count, false);
   // Per candidate: how many accepted tests it was compared with, and its largest corr^2 so far.
-  std::vector<std::size_t> compared(candidates.size(), 0);
-  std::vector<double> max_corr2(candidates.size(), 0.0);
+  std::vector<std::size_t> compared(count, 0);
+  std::vector<double> max_corr2(count, 0.0);
   for (int k = 4; accepted.size() < 256 && k <= 20; ++k) {
     const double threshold = (k * k) / 400.0;
     for (std::size_t c : order) {
@@ -271,7 +289,8 @@ std::array<TestPair, 256> generate_pattern() {
       // |mean - 1/2| <= kMaxBias  <=>  |2 ones - n| * 25 <= 6 n  (kMaxBias = 0.12)
       if (k < 20 && 25 * std::abs(2 * ones[c] - n) > 6 * n) continue;
       while (max_corr2[c] <= threshold && compared[c] < accepted.size()) {
-        max_corr2[c] = std::max(max_corr2[c], squared_correlation(c, accepted[compared[c]]));
+        max_corr2[c] =
+            std::max(max_corr2[c], outcomes.squared_correlation(c, accepted[compared[c]]));
         ++compared[c];
       }
       if (max_corr2[c] <= threshold) {
@@ -280,7 +299,13 @@ std::array<TestPair, 256> generate_pattern() {
       }
     }
   }
-  // (k = 20 accepts any test, so 256 are always found.)
+  return accepted;
+}
+
+std::array<TestPair, 256> generate_pattern() {
+  std::mt19937_64 rng(kSeed);
+  const std::vector<TestPair> candidates = candidate_tests(rng);
+  const std::vector<std::size_t> accepted = select_tests(outcomes_of(candidates, rng));
   std::array<TestPair, 256> pattern{};
   for (std::size_t i = 0; i < 256; ++i) pattern[i] = candidates[accepted[i]];
   return pattern;
