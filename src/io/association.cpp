@@ -90,4 +90,17 @@ void sort_by_time_unique(Trajectory& poses) {
               poses.end());
 }
 
+void check_recorded_images(const std::string& path, const RecordedImages& rgb,
+                           const RecordedImages& depth) {
+  for (const RecordedImages* images : {&rgb, &depth})
+    if (images->messages == 0)
+      throw InputError(file_error(path, "topic '" + images->topic + "' has no messages"));
+  if (depth.width != rgb.width || depth.height != rgb.height)
+    throw InputError(file_error(
+        path, "depth images ('" + depth.topic + "') are " + std::to_string(depth.width) + "x" +
+                  std::to_string(depth.height) + " but the colour images ('" + rgb.topic +
+                  "') are " + std::to_string(rgb.width) + "x" + std::to_string(rgb.height) +
+                  " (register the depth to the colour camera)"));
+}
+
 }  // namespace mcslam::io

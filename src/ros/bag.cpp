@@ -275,15 +275,8 @@ void BagSource::Impl::read_settings(const rosbag::MessageInstance& m) {
 
 void BagSource::Impl::check_images() const {
   const TopicOptions& t = options.topics;
-  for (const auto& [topic, images] : {std::pair{&t.rgb, &rgb}, std::pair{&t.depth, &depth}})
-    if (images->messages.empty())
-      throw InputError(file_error(path, "topic '" + *topic + "' has no messages"));
-  if (depth.width != rgb.width || depth.height != rgb.height)
-    throw InputError(file_error(
-        path, "depth images ('" + t.depth + "') are " + std::to_string(depth.width) + "x" +
-                  std::to_string(depth.height) + " but the colour images ('" + t.rgb + "') are " +
-                  std::to_string(rgb.width) + "x" + std::to_string(rgb.height) +
-                  " (register the depth to the colour camera)"));
+  io::check_recorded_images(path, {t.rgb, rgb.messages.size(), rgb.width, rgb.height},
+                            {t.depth, depth.messages.size(), depth.width, depth.height});
 }
 
 void BagSource::Impl::associate() {

@@ -321,15 +321,8 @@ void RecordingSource::Impl::read_groundtruth(
 void RecordingSource::Impl::check_scan(
     const std::string& gt_type, const std::set<std::pair<std::string, std::string>>& tf_pairs) {
   const TopicOptions& t = options.topics;
-  for (const auto& [name, images] : {std::pair{&t.rgb, &rgb}, std::pair{&t.depth, &depth}})
-    if (images->messages.empty())
-      throw InputError(file_error(path, "topic '" + *name + "' has no messages"));
-  if (depth.width != rgb.width || depth.height != rgb.height)
-    throw InputError(file_error(
-        path, "depth images ('" + t.depth + "') are " + std::to_string(depth.width) + "x" +
-                  std::to_string(depth.height) + " but the colour images ('" + t.rgb + "') are " +
-                  std::to_string(rgb.width) + "x" + std::to_string(rgb.height) +
-                  " (register the depth to the colour camera)"));
+  io::check_recorded_images(path, {t.rgb, rgb.messages.size(), rgb.width, rgb.height},
+                            {t.depth, depth.messages.size(), depth.width, depth.height});
   if (!t.groundtruth.empty() && gt_type == "tf2_msgs/msg/TFMessage" && groundtruth.empty() &&
       !tf_pairs.empty()) {
     std::string seen;

@@ -33,6 +33,17 @@ RecordingPairs pair_recording(const std::string& path, const std::string& rgb_to
                               const std::vector<double>& depth, double max_difference,
                               std::vector<std::string>& warnings);
 
+/// A recording's image topic as read: its name, its number of messages, its images' size.
+struct RecordedImages {
+  std::string topic;
+  std::size_t messages = 0;
+  int width = 0, height = 0;
+};
+/// InputError naming `path` when the colour or the depth topic has no messages, or when their
+/// images differ in size (the depth must be registered to the colour camera).
+void check_recorded_images(const std::string& path, const RecordedImages& rgb,
+                           const RecordedImages& depth);
+
 /// Ground truth read from messages, in time order, one pose per time stamp (the first).
 void sort_by_time_unique(Trajectory& poses);
 
