@@ -62,6 +62,8 @@ RecordingPairs pair_recording(const std::string& path, const std::string& rgb_to
                               const std::vector<double>& depth, double max_difference,
                               std::vector<std::string>& warnings) {
   RecordingPairs out;
+  for (const auto& [topic, stamps] : {std::pair{&rgb_topic, &rgb}, std::pair{&depth_topic, &depth}})
+    if (stamps->empty()) throw InputError(file_error(path, "topic '" + *topic + "' has no images"));
   out.pairs = associate_stamps(rgb, depth, max_difference);
   if (out.pairs.empty())
     throw InputError(file_error(
