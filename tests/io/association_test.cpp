@@ -2,25 +2,18 @@
 
 #include <gtest/gtest.h>
 
-#include <functional>
 #include <string>
 #include <vector>
 
 #include "mcslam/core/error.hpp"
+#include "support/temp_dir.hpp"
 
 namespace mcslam::io {
 namespace {
 
 using Pairs = std::vector<std::pair<std::size_t, std::size_t>>;
 
-std::string message_of(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  return "";
-}
+using mcslam::test::expect_input_error;
 
 TEST(Association, ClosestPairsFirstEachImageOnce) {
   // Colour 1.000 is 5 ms from depth 1.005 and 10 ms from 0.990; colour 1.008 is 3 ms from
@@ -55,27 +48,27 @@ TEST(Association, ARecordingsFramesAreNamedByTopicAndMessage) {
 
 TEST(Association, NoPairOrNoImagesIsAnErrorNamingTheRecording) {
   std::vector<std::string> warnings;
-  const std::string none = message_of(
-      [&] { pair_recording("run.bag", "/rgb", "/depth", {1.0}, {2.0}, 0.02, warnings); });
-  EXPECT_NE(none.find("run.bag"), std::string::npos);
-  EXPECT_NE(none.find("no colour image has a depth image"), std::string::npos);
-  const std::string empty =
-      message_of([&] { pair_recording("run.bag", "/rgb", "/depth", {}, {2.0}, 0.02, warnings); });
-  EXPECT_NE(empty.find("topic '/rgb' has no images"), std::string::npos);
+  expect_input_error(
+      [&] { pair_recording("run.bag", "/rgb", "/depth", {1.0}, {2.0}, 0.02, warnings); },
+      {"run.bag", "no colour image has a depth image"});
+  expect_input_error(
+      [&] { pair_recording("run.bag", "/rgb", "/depth", {}, {2.0}, 0.02, warnings); },
+      {"run.bag", "topic '/rgb' has no images"});
 }
 
 TEST(Association, RecordedImagesNeedMessagesAndOneSize) {
   const RecordedImages rgb{"/rgb", 10, 640, 480};
   EXPECT_NO_THROW(check_recorded_images("r", rgb, {"/depth", 9, 640, 480}));
-  EXPECT_NE(message_of([&] {
-              check_recorded_images("r", rgb, {"/depth", 0, 640, 480});
-            }).find("topic '/depth' has no messages"),
-            std::string::npos);
-  const std::string sizes = message_of([&] {
-    check_recorded_images("r", rgb, {"/depth", 9, 320, 240});
-  });
-  EXPECT_NE(sizes.find("320x240"), std::string::npos);
-  EXPECT_NE(sizes.find("register the depth"), std::string::npos);
+  expect_input_error(
+      [&] {
+        check_recorded_images("r", rgb, {"/depth", 0, 640, 480});
+      },
+      {"topic '/depth' has no messages"});
+  expect_input_error(
+      [&] {
+        check_recorded_images("r", rgb, {"/depth", 9, 320, 240});
+      },
+      {"320x240", "640x480", "register the depth"});
 }
 
 TEST(Association, GroundTruthIsSortedWithOnePosePerStamp) {
