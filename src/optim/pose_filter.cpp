@@ -191,13 +191,15 @@ PoseFilterUpdate PoseFilter::update(double timestamp, const SE3& T_c_w,
     return out;
   }
   const double dt = timestamp - timestamp_;
+  // Whether this measurement continues the last one (no start, no gap, time moves on).
+  const bool continues = started_ && dt > 0.0 && dt <= options_.max_gap;
   const Matrix3d R_m = T_c_w.rotation();
   const Vector3d c_m = -(R_m.transpose() * T_c_w.translation());
   if (options_.noise_window > 0.0) {
-    if (!started_ || !(dt > 0.0) || dt > options_.max_gap) noise_.break_sequence();
+    if (!continues) noise_.break_sequence();
     noise_.add(timestamp, R_m, c_m, information_on_centre(information, R_m));
   }
-  if (!started_ || !(dt > 0.0) || dt > options_.max_gap || !information.allFinite()) {
+  if (!continues || !information.allFinite()) {
     restart(timestamp, T_c_w, information.allFinite() ? information : Matrix6d::Zero(), false);
     return restarted_at(timestamp, T_c_w, 0.0);
   }

@@ -291,7 +291,7 @@ Scene make_room_scene(const SynthOptions& options) {
   }
   if (options.dynamic.enabled) build.add_movers(options.dynamic);
   scene.textures = make_textures(build.jobs, options.texture);
-  return std::move(scene);
+  return std::move(build.scene);
 }
 
 namespace {

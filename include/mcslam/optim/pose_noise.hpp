@@ -22,8 +22,7 @@
 #include <Eigen/Core>
 #include <deque>
 #include <optional>
-#include <string>
-#include <vector>
+#include <utility>
 
 #include "mcslam/core/se3.hpp"
 
