@@ -99,6 +99,11 @@ void add_tracking_figures(nlohmann::json& summary, const FrameRecorder& recorder
       {"from_last_pose", recorder.recovered}, {"by_database", recorder.reloc_by_database},
       {"query_median_ms", q.median},          {"query_p95_ms", q.p95},
       {"events", recorder.reloc_events}};
+  // The pose filter's outcomes over the tracked frames (optim/pose_filter.hpp).
+  nlohmann::json filter = nlohmann::json::object();
+  for (const auto* name : {"fused", "downweighted", "held", "restarted", "off"})
+    filter[name] = recorder.online_poses.count(name) ? recorder.online_poses.at(name) : 0;
+  summary["pose_filter"] = filter;
 }
 
 nlohmann::json solver_failures_json(const slam::SolverStatistics& solver) {

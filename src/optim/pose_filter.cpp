@@ -16,6 +16,8 @@ std::optional<std::string> PoseFilterOptions::check() const {
     return "pose_filter.measurement_noise_scale must be a positive number";
   if (!positive(downweight_chi2)) return "pose_filter.downweight_chi2 must be a positive number";
   if (!positive(gate_chi2)) return "pose_filter.gate_chi2 must be a positive number";
+  if (held_frames < 0 || held_frames > 30)
+    return "pose_filter.held_frames must be a number of frames from 0 to 30";
   if (!positive(max_gap)) return "pose_filter.max_gap must be a positive number of seconds";
   if (!(std::isfinite(adaptive_memory) && adaptive_memory >= 0.0))
     return "pose_filter.adaptive_memory must be a number of seconds >= 0 (0: fixed densities)";
@@ -63,6 +65,22 @@ Matrix12x6d measured_columns(const Matrix12d& P) {
 }
 
 }  // namespace
+
+const char* to_string(FilterOutcome outcome) {
+  switch (outcome) {
+    case FilterOutcome::kOff:
+      return "off";
+    case FilterOutcome::kFused:
+      return "fused";
+    case FilterOutcome::kDownweighted:
+      return "downweighted";
+    case FilterOutcome::kHeld:
+      return "held";
+    case FilterOutcome::kRestarted:
+      return "restarted";
+  }
+  return "unknown";
+}
 
 SE3 PoseFilterState::T_c_w() const { return pose_of(R, c); }
 
@@ -114,6 +132,8 @@ void PoseFilter::restart(double timestamp, const SE3& T_c_w, const Matrix6d& inf
     mean_nis_ = 6.0;
   }
   started_ = true;
+  held_ = 0;
+  map_moved_.reset();
   timestamp_ = timestamp;
   x_.R = T_c_w.rotation();
   x_.c = -(x_.R.transpose() * T_c_w.translation());
@@ -178,9 +198,35 @@ PoseFilterUpdate PoseFilter::restarted_at(double timestamp, const SE3& T_c_w, do
   PoseFilterUpdate out;
   out.T_c_w = T_c_w;
   out.nis = nis;
-  out.restarted = true;
+  out.outcome = FilterOutcome::kRestarted;
   out.step = PoseFilterStep{timestamp, true, x_, Matrix12d::Identity(), x_};
   return out;
+}
+
+Vector6d PoseFilter::innovation(const SE3& T_c_w) const {
+  const Matrix3d R = T_c_w.rotation();
+  Vector6d z;
+  z.head<3>() = -(R.transpose() * T_c_w.translation()) - x_.c;
+  z.tail<3>() = rotation_log(R * x_.R.transpose());
+  return z;
+}
+
+bool PoseFilter::holds(const SE3& T_c_w, double nis, const Matrix6d& S_inv) {
+  // A frame the map's move since the frame before explains (a loop correction) is a jump.
+  bool map_jump = false;
+  if (map_moved_) {
+    const Vector6d z_before = innovation(T_c_w * *map_moved_);
+    map_jump = z_before.dot(S_inv * z_before) <= options_.gate_chi2;
+    map_moved_.reset();
+  }
+  // Until the frames' noise is measured their covariance is the optimiser's, which can
+  // understate it many times over (noise_window): the gate then tells nothing.
+  const bool noise_known =
+      !(options_.noise_window > 0.0) || noise_.values() >= PoseNoiseEstimate::kMinValues;
+  if (!std::isfinite(nis) || map_jump || !noise_known || held_ >= options_.held_frames)
+    return false;
+  ++held_;
+  return true;
 }
 
 PoseFilterUpdate PoseFilter::update(double timestamp, const SE3& T_c_w,
@@ -208,9 +254,7 @@ PoseFilterUpdate PoseFilter::update(double timestamp, const SE3& T_c_w,
   step.F = predict(dt);
   step.predicted = x_;
 
-  Vector6d z;
-  z.head<3>() = c_m - x_.c;
-  z.tail<3>() = rotation_log(R_m * x_.R.transpose());
+  const Vector6d z = innovation(T_c_w);
   Matrix6d H = information_on_centre(information, x_.R) / measurement_variance_factor();
   // S^-1 = (C P C^T + H^-1)^-1 = H (I + C P C^T H)^-1: no inverse of H, which may be singular.
   const Matrix12x6d PC = measured_columns(x_.P);
@@ -221,9 +265,22 @@ PoseFilterUpdate PoseFilter::update(double timestamp, const SE3& T_c_w,
   const double nis = z.dot(S_inv * z);
   adapt(dt, nis);
   if (!std::isfinite(nis) || nis > options_.gate_chi2) {
+    if (holds(T_c_w, nis, S_inv)) {
+      // The prediction stands for this frame.
+      timestamp_ = timestamp;
+      step.filtered = x_;
+      PoseFilterUpdate out;
+      out.T_c_w = x_.T_c_w();
+      out.nis = nis;
+      out.outcome = FilterOutcome::kHeld;
+      out.step = std::move(step);
+      return out;
+    }
     restart(timestamp, T_c_w, information, true);
     return restarted_at(timestamp, T_c_w, std::isfinite(nis) ? nis : 0.0);
   }
+  held_ = 0;
+  map_moved_.reset();
   if (nis > options_.downweight_chi2) {
     // Huber: the measurement counts as a frame at the threshold would.
     H *= std::sqrt(options_.downweight_chi2 / nis);
@@ -241,6 +298,8 @@ PoseFilterUpdate PoseFilter::update(double timestamp, const SE3& T_c_w,
   PoseFilterUpdate out;
   out.T_c_w = x_.T_c_w();
   out.nis = nis;
+  out.outcome =
+      nis > options_.downweight_chi2 ? FilterOutcome::kDownweighted : FilterOutcome::kFused;
   out.step = std::move(step);
   return out;
 }
@@ -248,6 +307,7 @@ PoseFilterUpdate PoseFilter::update(double timestamp, const SE3& T_c_w,
 void PoseFilter::move_world(const SE3& W) {
   noise_.move_world(W);
   if (started_ && options_.follow_map) x_.move_world(W);
+  if (started_ && !options_.follow_map) map_moved_ = map_moved_ ? W * *map_moved_ : W;
 }
 
 }  // namespace mcslam::optim

@@ -126,6 +126,7 @@ std::vector<Field> mcslam_fields(PinholeCamera& c, SystemOptions& o) {
       {"tracker.pose_filter.measurement_noise_scale", &t.pose_filter.measurement_noise_scale},
       {"tracker.pose_filter.downweight_chi2", &t.pose_filter.downweight_chi2},
       {"tracker.pose_filter.gate_chi2", &t.pose_filter.gate_chi2},
+      {"tracker.pose_filter.held_frames", &t.pose_filter.held_frames},
       {"tracker.pose_filter.follow_map", &t.pose_filter.follow_map},
       {"tracker.pose_filter.max_gap", &t.pose_filter.max_gap},
       {"tracker.pose_filter.adaptive_memory", &t.pose_filter.adaptive_memory},

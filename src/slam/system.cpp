@@ -248,6 +248,7 @@ FrameResult System::process(const PreparedImages& images, double timestamp,
   if (readout_) observe_readout(frame, motion, outcome);
   if (outcome.state == TrackingState::kOk) {
     result.T_w_c = outcome.T_c_w_online.inverse();
+    result.online_pose = outcome.online_pose;
     place_moving_objects(images.depth, *result.T_w_c, result);
     if (options_.localize && occupancy_) add_localize_view(images.depth, result);
     record.tracked = true;

@@ -379,6 +379,7 @@ void Tracker::accept(const Frame& frame, const Associations& assoc, const SE3& T
   const optim::PoseFilterUpdate filtered =
       pose_filter_.update(frame.timestamp, T_c_w, pose_information_);
   out.T_c_w_online = filtered.T_c_w;
+  out.online_pose = filtered.outcome;
   if (pose_smoother_ && filtered.step) out.lagged = pose_smoother_->add(*filtered.step);
   if (const auto T_last = last_frame_pose(); T_last && state_ == TrackingState::kOk) {
     previous_velocity_ = velocity_;

@@ -186,6 +186,15 @@ TEST(CliRun, WritesAllOutputs) {
   ASSERT_TRUE(summary.contains("lost_frames"));
   EXPECT_EQ(summary["lost_frames"].get<int>(), 0);
   EXPECT_TRUE(summary.contains("relocalisations"));
+  // Every tracked frame is counted once: the frame that starts the map (its pose set, not
+  // estimated) as "off", the others through the filter (on by default).
+  ASSERT_TRUE(summary.contains("pose_filter"));
+  int filtered = 0;
+  for (const char* outcome : {"fused", "downweighted", "held", "restarted"})
+    filtered += summary["pose_filter"][outcome].get<int>();
+  EXPECT_EQ(filtered + 1, summary["tracked_frames"].get<int>()) << summary["pose_filter"];
+  EXPECT_EQ(summary["pose_filter"]["off"].get<int>(), 1);
+  EXPECT_GE(summary["pose_filter"]["restarted"].get<int>(), 1) << "the filter starts once";
   ASSERT_TRUE(summary.contains("stages"));
   ASSERT_TRUE(summary["stages"].contains("tracking_total"));
   ASSERT_TRUE(summary["stages"]["tracking_total"].contains("median_ms"));

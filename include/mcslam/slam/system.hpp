@@ -76,6 +76,8 @@ struct FrameResult {
   int line_inliers = 0;
   int plane_inliers = 0;
   std::optional<SE3> T_w_c;  // when tracked
+  /// What the motion model made of the frame's own pose (tracker.pose_filter).
+  optim::FilterOutcome online_pose = optim::FilterOutcome::kOff;
   /// With tracker.pose_filter.lag > 0: an earlier frame's pose, smoothed with the frames since
   /// (its own timestamp; the frame `lag` tracked frames back).
   std::optional<StampedPose> lagged;

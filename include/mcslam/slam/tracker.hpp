@@ -91,6 +91,8 @@ struct TrackingOutcome {
   /// The pose fused with the motion model (tracker.pose_filter; T_c_w when it is off): what
   /// process() returns and trajectory_online.txt holds.
   SE3 T_c_w_online;
+  /// What the filter made of the frame's pose (kOff with the filter off or the frame not tracked).
+  optim::FilterOutcome online_pose = optim::FilterOutcome::kOff;
   /// With tracker.pose_filter.lag > 0: the pose of the frame `lag` poses back, smoothed with the
   /// frames since (pose_smoother.hpp); nullopt until there is one.
   std::optional<optim::LaggedPose> lagged;
