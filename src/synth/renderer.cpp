@@ -290,19 +290,22 @@ Renderer::Renderer(const Scene& scene, const PinholeCamera& camera, const Render
 
 namespace {
 
-/// Renders the image with setup_of(y) (a const FrameSetup&) describing the view of row y, so that
-/// a global-shutter render (one setup) pays nothing for the rolling-shutter option.
-template <class SetupOfRow>
-RenderedFrame render_rows(const PinholeCamera& camera, const RenderOptions& options, double t,
-                          const SetupOfRow& setup_of) {
-  const int w = camera.width, h = camera.height;
-  RenderedFrame frame;
-  frame.depth.create(h, w, CV_32FC1);
-  frame.labels.create(h, w, CV_16SC1);
-  cv::Mat prim(h, w, CV_32SC1);
-  cv::Mat colour(h, w, CV_32FC3);
+/// Whether pixel (x, y) borders a pixel of another primitive (a geometric edge).
+bool on_edge(const cv::Mat& prim, int x, int y) {
+  const int p = prim.ptr<int>(y)[x];
+  for (int yy = std::max(0, y - 1); yy <= std::min(prim.rows - 1, y + 1); ++yy) {
+    const int* r = prim.ptr<int>(yy);
+    for (int xx = std::max(0, x - 1); xx <= std::min(prim.cols - 1, x + 1); ++xx)
+      if (r[xx] != p) return true;
+  }
+  return false;
+}
 
-  // Pass 1: one ray through each pixel centre.
+/// Pass 1: one ray through each pixel centre: depth, labels, the primitive hit and its colour.
+template <class SetupOfRow>
+void cast_pixel_centres(const PinholeCamera& camera, const SetupOfRow& setup_of,
+                        RenderedFrame& frame, cv::Mat& prim, cv::Mat& colour) {
+  const int w = camera.width, h = camera.height;
   parallel_for(0, h, [&](int first, int last) {
     for (int y = first; y < last; ++y) {
       const FrameSetup& f = setup_of(y);
@@ -320,36 +323,26 @@ RenderedFrame render_rows(const PinholeCamera& camera, const RenderOptions& opti
       }
     }
   });
+}
 
-  // Pass 2: anti-alias geometric edges with 4 rotated-grid subsamples, then add noise.
-  const std::uint64_t frame_seed = detail::hash_combine(options.noise_seed, detail::hash_double(t));
+/// Pass 2: geometric edges anti-aliased with 4 rotated-grid subsamples, then the colour noise.
+template <class SetupOfRow>
+void shade_pixels(const PinholeCamera& camera, const RenderOptions& options,
+                  std::uint64_t frame_seed, const SetupOfRow& setup_of, const cv::Mat& prim,
+                  const cv::Mat& colour, cv::Mat& rgb) {
+  const int w = camera.width, h = camera.height;
   const float sigma = static_cast<float>(options.rgb_noise_sigma);
   static constexpr double kSub[4][2] = {
       {-0.125, -0.375}, {0.375, -0.125}, {0.125, 0.375}, {-0.375, 0.125}};
-  frame.rgb.create(h, w, CV_8UC3);
+  rgb.create(h, w, CV_8UC3);
   parallel_for(0, h, [&](int first, int last) {
     for (int y = first; y < last; ++y) {
       const FrameSetup& f = setup_of(y);
-      const int* prim_row = prim.ptr<int>(y);
       const cv::Vec3f* colour_row = colour.ptr<cv::Vec3f>(y);
-      cv::Vec3b* rgb_row = frame.rgb.ptr<cv::Vec3b>(y);
+      cv::Vec3b* rgb_row = rgb.ptr<cv::Vec3b>(y);
       for (int x = 0; x < w; ++x) {
-        const int p = prim_row[x];
-        bool edge = false;
-        for (int dy = -1; dy <= 1 && !edge; ++dy) {
-          const int yy = y + dy;
-          if (yy < 0 || yy >= h) continue;
-          const int* r = prim.ptr<int>(yy);
-          for (int dx = -1; dx <= 1; ++dx) {
-            const int xx = x + dx;
-            if (xx >= 0 && xx < w && r[xx] != p) {
-              edge = true;
-              break;
-            }
-          }
-        }
         float c[3] = {colour_row[x][0], colour_row[x][1], colour_row[x][2]};
-        if (edge) {
+        if (on_edge(prim, x, y)) {
           c[0] = c[1] = c[2] = 0.0f;
           for (const auto& o : kSub) {
             const double u = x + o[0], v = y + o[1];
@@ -369,7 +362,22 @@ RenderedFrame render_rows(const PinholeCamera& camera, const RenderOptions& opti
       }
     }
   });
+}
 
+/// Renders the image with setup_of(y) (a const FrameSetup&) describing the view of row y, so that
+/// a global-shutter render (one setup) pays nothing for the rolling-shutter option.
+template <class SetupOfRow>
+RenderedFrame render_rows(const PinholeCamera& camera, const RenderOptions& options, double t,
+                          const SetupOfRow& setup_of) {
+  const int w = camera.width, h = camera.height;
+  RenderedFrame frame;
+  frame.depth.create(h, w, CV_32FC1);
+  frame.labels.create(h, w, CV_16SC1);
+  cv::Mat prim(h, w, CV_32SC1);
+  cv::Mat colour(h, w, CV_32FC3);
+  cast_pixel_centres(camera, setup_of, frame, prim, colour);
+  const std::uint64_t frame_seed = detail::hash_combine(options.noise_seed, detail::hash_double(t));
+  shade_pixels(camera, options, frame_seed, setup_of, prim, colour, frame.rgb);
   if (options.depth_noise)
     frame.depth = apply_kinect_depth_noise(frame.depth, detail::hash_combine(frame_seed, 0xDE97));
   return frame;
