@@ -61,7 +61,7 @@ def test_a_calibration_offset_is_found_and_lowers_the_held_out_halves():
 
 def test_drift_is_not_taken_for_a_calibration_offset():
     # Fitted on one half, a lever arm absorbs some of that half's drift, which the other half's
-    # drift does not share: held out, it rarely lowers the ATE by a fifth (3 of these 12 halves),
+    # drift does not share: held out, it rarely lowers the ATE by a fifth (2 of these 12 halves),
     # where a real offset lowers both halves by far more (the test above).
     co = load_script()
     P, Rs = handheld(co)
