@@ -130,6 +130,7 @@ void PoseFilter::restart(double timestamp, const SE3& T_c_w, const Matrix6d& inf
     x_.w.setZero();
     liveliness_ = 1.0;
     mean_nis_ = 6.0;
+    has_velocity_ = false;
   }
   started_ = true;
   held_ = 0;
@@ -288,6 +289,7 @@ PoseFilterUpdate PoseFilter::update(double timestamp, const SE3& T_c_w,
   }
   const Matrix12x6d K = PC * S_inv;
   x_ = x_.plus(K * z);
+  has_velocity_ = true;
   Matrix12d IKC = Matrix12d::Identity();
   IKC.middleCols<3>(kC) -= K.leftCols<3>();
   IKC.middleCols<3>(kTheta) -= K.rightCols<3>();

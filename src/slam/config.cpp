@@ -84,6 +84,7 @@ std::vector<Field> mcslam_fields(PinholeCamera& c, SystemOptions& o) {
       {"tracker.depth_weight", &t.depth_weight},
       {"tracker.compensate_depth_time", &t.compensate_depth_time},
       {"tracker.refine_rolling_shutter", &t.refine_rolling_shutter},
+      {"tracker.filtered_angular_velocity", &t.filtered_angular_velocity},
       {"tracker.angular_velocity_sigma", &t.angular_velocity_sigma},
       {"tracker.refine_min_angular_velocity", &t.refine_min_angular_velocity},
       {"tracker.min_motion_matches", &t.min_motion_matches},

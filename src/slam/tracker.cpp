@@ -373,8 +373,9 @@ void Tracker::accept(const Frame& frame, const Associations& assoc, const SE3& T
                      bool mapper_idle, std::size_t mapper_queue, TrackingOutcome& out) {
   // The pose a robot steers by: the frame's pose fused with the motion model. Tracking itself
   // (the next frame's prediction, keyframes, the final trajectory) goes on from the frame's own
-  // pose, so that the filter never feeds back into what it filters. A relocalised pose is a jump
-  // the motion model must not smooth away.
+  // pose; of the filter it takes only the angular velocity the next frame's rolling shutter is
+  // corrected with (filtered_angular_velocity), a prediction from the frames before it. A
+  // relocalised pose is a jump the motion model must not smooth away.
   if (out.relocalised) pose_filter_.reset();
   const optim::PoseFilterUpdate filtered =
       pose_filter_.update(frame.timestamp, T_c_w, pose_information_);
@@ -456,6 +457,10 @@ std::optional<SE3> Tracker::predicted_motion(double dt) const {
 }
 
 Eigen::Vector3d Tracker::angular_velocity() const {
+  // The filter's rate while the camera moves within the motion model (its densities the
+  // settings'); a camera livelier than that outruns it, and the last two steps follow faster.
+  if (options_.filtered_angular_velocity && pose_filter_.liveliness() <= 1.0)
+    if (const auto w = pose_filter_.angular_velocity()) return *w;
   if (!velocity_ || !(velocity_dt_ > 1e-4) || state_ != TrackingState::kOk)
     return Eigen::Vector3d::Zero();
   if (previous_velocity_ && previous_velocity_dt_ > 1e-4)

@@ -250,6 +250,47 @@ TEST(PoseFilter, FramesNoisierThanTheirCovarianceSaysAreSmoothedAsTheirNoiseAsks
             position_error_rms(claimed_noise, run.truth, 60));
 }
 
+/// The camera's angular velocity (camera frame) at t: the turn of R_c_w over a small step.
+Eigen::Vector3d true_angular_velocity(double t, SE3 (*path)(double)) {
+  constexpr double h = 1e-5;
+  return so3_log(path(t + h).quaternion() * path(t - h).quaternion().inverse()) / (2.0 * h);
+}
+
+// The tracker corrects a frame's rolling shutter with the filter's angular velocity: none until a
+// measurement was fused after a fresh start, then the camera's turn rate, smoother than the mean
+// of the last two steps between the noisy poses and current to the last frame. Measured (the
+// valley's noise, 0.03 deg per frame): error 0.064 rad/s RMS against 0.123 for the two steps.
+TEST(PoseFilter, ItsAngularVelocityFollowsTheCameraBetterThanTheLastSteps) {
+  const Matrix6d cov = valley_covariance();
+  const Noisy run = simulate(300, 17, cov);
+  PoseFilter filter(exact());
+  EXPECT_FALSE(filter.angular_velocity());
+  filter.update(run.times[0], run.measured[0], cov.inverse());
+  EXPECT_FALSE(filter.angular_velocity());  // a fresh start knows no velocity yet
+  double filtered_sum = 0.0, steps_sum = 0.0;
+  int n = 0;
+  for (std::size_t k = 1; k < run.measured.size(); ++k) {
+    filter.update(run.times[k], run.measured[k], cov.inverse());
+    ASSERT_TRUE(filter.angular_velocity());
+    if (k < 30) continue;
+    // What the next frame is corrected with, against the camera's rate at the next frame.
+    const Eigen::Vector3d truth = true_angular_velocity(run.times[k] + kDt, truth_at);
+    const Eigen::Vector3d steps =
+        so3_log(run.measured[k].quaternion() * run.measured[k - 2].quaternion().inverse()) /
+        (run.times[k] - run.times[k - 2]);
+    filtered_sum += (*filter.angular_velocity() - truth).squaredNorm();
+    steps_sum += (steps - truth).squaredNorm();
+    ++n;
+  }
+  const double filtered = std::sqrt(filtered_sum / n), steps = std::sqrt(steps_sum / n);
+  std::printf("angular velocity error: filter %.3f rad/s, last two steps %.3f rad/s\n", filtered,
+              steps);
+  EXPECT_LT(filtered, 0.6 * steps);
+  filter.reset();
+  filter.update(run.times[299] + 1.0, run.measured[299], cov.inverse());
+  EXPECT_FALSE(filter.angular_velocity());
+}
+
 TEST(PoseFilter, AJumpTheMotionCannotExplainRestartsAtTheMeasurement) {
   const Matrix6d cov = valley_covariance();
   const Noisy run = simulate(60, 3, cov);

@@ -191,6 +191,12 @@ class PoseFilter {
   void move_world(const SE3& W);
 
   bool started() const { return started_; }
+  /// The camera's angular velocity (camera frame, rad/s) as the filter has it, once it has one:
+  /// from the first measurement fused after a fresh start on (a restart that keeps the
+  /// velocities keeps it).
+  std::optional<Eigen::Vector3d> angular_velocity() const {
+    return started_ && has_velocity_ ? std::optional<Eigen::Vector3d>(x_.w) : std::nullopt;
+  }
   /// The factor the densities are multiplied by now (adaptive_memory; 1: the settings').
   double liveliness() const { return liveliness_; }
   /// The factor the measurements' covariance is multiplied by now (measurement_noise_scale^2
@@ -216,6 +222,7 @@ class PoseFilter {
   double liveliness_ = 1.0;       // the densities' multiplier
   double mean_nis_ = 6.0;         // the recent innovations' mean
   int held_ = 0;                  // frames beyond the gate in a row, held (held_frames)
+  bool has_velocity_ = false;     // a measurement was fused since the last fresh start
   std::optional<SE3> map_moved_;  // the map's moves since the last measurement (not followed)
   PoseNoiseEstimate noise_;       // the measurements' noise against their covariance
 };

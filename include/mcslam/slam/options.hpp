@@ -44,6 +44,17 @@ struct TrackerOptions {
   /// handheld camera's turn rate by 0.49 rad/s (freiburg1_rpy), most of its online pose's
   /// frame-to-frame noise (online RPE over one frame 8.35 -> 6.4 mm; docs/rolling-shutter.md).
   bool refine_rolling_shutter = true;
+  /// The angular velocity a frame's keypoints are moved to the middle row's time with: the pose
+  /// filter's (tracker.pose_filter, when it is on, has one and its densities are the settings':
+  /// the camera moves within the motion model), which weighs the frames' turns by their measured
+  /// noise and is current to the last frame; otherwise, or false, the mean over the last two
+  /// tracked steps, centred a frame and a half back. A camera livelier than the model (the
+  /// densities lifted) outruns the filter's rate: taken always, it left the 30 ms rolling-shutter
+  /// render at 90 deg/s 61 mm off against 24 (tests/slam/rolling_shutter_test.cpp). Default
+  /// threaded runs, yolov8n_320, 12 + 12 side by side: online ATE freiburg1_rpy 9.1 -> 8.4 mm,
+  /// Bonn crowd part 1 17.8 -> 17.1, from frame 240 12.6 -> 12.3; `trajectory.txt`
+  /// freiburg1_rpy 7.2 -> 6.7 mm; online RPE over one frame the same (docs/rolling-shutter.md).
+  bool filtered_angular_velocity = true;
   /// The prior on that correction (rad/s per axis): the prediction's error, 0.49 rad/s RMS over
   /// three axes against freiburg1_rpy's ground truth, 0.3 per axis.
   double angular_velocity_sigma = 0.3;
