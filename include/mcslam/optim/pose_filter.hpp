@@ -75,9 +75,9 @@ struct PoseFilterOptions {
   /// Normalised innovation squared (6 dof) beyond which a measurement is not noise: a jump (a
   /// loop closure's correction of the map), at which the filter restarts, or the frame's own
   /// failure, which it holds (held_frames). A consistent filter exceeds 50 once in 2e8 frames
-  /// (chi-square, 6 dof); `--sequential`, freiburg1_rpy's frames exceed 12.59 at 9 of 692 and 50
-  /// at 5, all in the first 8 frames, before their noise is measured (noise_window; until then
-  /// the gate restarts at once), Bonn crowd part 1's 12.59 at 3 of 458 and 50 at none.
+  /// (chi-square, 6 dof); `--sequential`, freiburg1_rpy's frames exceed 12.59 at 6 of 692 and 50
+  /// at 5, in its first 8 frames, before their noise is measured (noise_window; until then the
+  /// gate restarts at once), Bonn crowd part 1's 12.59 at 2 of 458 and 50 at none.
   double gate_chi2 = 50.0;
   /// Frames beyond the gate in a row for which the filter gives out its prediction (the frame
   /// counts for nothing) before it restarts at the measurement. A camera cannot jump: a
