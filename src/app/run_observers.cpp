@@ -12,7 +12,6 @@
 #include "mcslam/app/run.hpp"
 #include "mcslam/core/error.hpp"
 #include "mcslam/io/trajectory_io.hpp"
-#include "mcslam/optim/pose_filter.hpp"
 
 namespace mcslam::app {
 namespace {
@@ -77,7 +76,7 @@ void FrameRecorder::on_frame(const FrameEvent& e) {
     if (e.latency_ms) lagged_latency_ms.push_back(lagged_delay_ms.back() + *e.latency_ms);
   }
   tracked += r.state == slam::TrackingState::kOk ? 1 : 0;
-  if (r.state == slam::TrackingState::kOk) ++online_poses[optim::to_string(r.online_pose)];
+  if (r.state == slam::TrackingState::kOk) ++online_poses[r.online_pose];
   lost += r.state == slam::TrackingState::kLost ? 1 : 0;
   relocalised += r.relocalised ? 1 : 0;
   if (r.relocalisation) {

@@ -14,6 +14,7 @@
 #include "mcslam/app/frame_observer.hpp"
 #include "mcslam/core/timing.hpp"
 #include "mcslam/io/files.hpp"
+#include "mcslam/optim/pose_filter.hpp"
 
 namespace mcslam::app {
 
@@ -73,7 +74,7 @@ class FrameRecorder : public FrameObserver {
   int reloc_attempts = 0;  // lost frames that tried to find their pose again
   int recovered = 0;  // relocalisations from the pose before the loss (tracker.recovery_window)
   std::map<std::string, std::vector<double>> counts;  // per-frame feature and inlier counts
-  std::map<std::string, int> online_poses;            // tracked frames per pose filter outcome
+  std::map<optim::FilterOutcome, int> online_poses;   // tracked frames per pose filter outcome
 
  private:
   std::vector<std::string> frame_prefix_;

@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "mcslam/core/timing.hpp"
+#include "mcslam/optim/pose_filter.hpp"
 
 namespace mcslam::app {
 namespace {
@@ -100,9 +101,12 @@ void add_tracking_figures(nlohmann::json& summary, const FrameRecorder& recorder
       {"query_median_ms", q.median},          {"query_p95_ms", q.p95},
       {"events", recorder.reloc_events}};
   // The pose filter's outcomes over the tracked frames (optim/pose_filter.hpp).
+  using optim::FilterOutcome;
   nlohmann::json filter = nlohmann::json::object();
-  for (const auto* name : {"fused", "downweighted", "held", "restarted", "off"})
-    filter[name] = recorder.online_poses.count(name) ? recorder.online_poses.at(name) : 0;
+  for (const FilterOutcome o :
+       {FilterOutcome::kFused, FilterOutcome::kDownweighted, FilterOutcome::kHeld,
+        FilterOutcome::kRestarted, FilterOutcome::kOff})
+    filter[optim::to_string(o)] = recorder.online_poses.count(o) ? recorder.online_poses.at(o) : 0;
   summary["pose_filter"] = filter;
 }
 
