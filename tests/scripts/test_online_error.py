@@ -1,0 +1,77 @@
+"""scripts/online_error.py on trajectories made here (fixed seeds)."""
+import importlib.util
+import pathlib
+import sys
+
+import numpy as np
+
+SCRIPTS = pathlib.Path(__file__).resolve().parents[2] / 'scripts'
+
+
+def load_script():
+    sys.path.insert(0, str(SCRIPTS))
+    spec = importlib.util.spec_from_file_location('online_error', SCRIPTS / 'online_error.py')
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def write_tum(path, stamps, positions, quats):
+    with open(path, 'w') as f:
+        f.write('# timestamp tx ty tz qx qy qz qw\n')
+        for t, p, q in zip(stamps, positions, quats):
+            f.write(f'{t:.6f} ' + ' '.join(f'{v:.9f}' for v in (*p, *q)) + '\n')
+
+
+def make_run(tmp_path, seed=3):
+    """Ground truth at 100 Hz over 12 s; a run at 30 Hz whose online pose is 2 mm noisy and
+    3 cm off from 4 to 6 s (the map at the time shifted, corrected later), and whose final
+    trajectory is 2 mm noisy throughout. Both in a world of their own (rotated and shifted)."""
+    rng = np.random.default_rng(seed)
+    gt_t = 100.0 + np.arange(0, 12.0, 0.01)
+    path = lambda t: np.column_stack([0.5 * np.sin(0.4 * t), 0.2 * np.cos(0.3 * t),  # noqa: E731
+                                      0.1 * t])
+    quat = np.tile([0.0, 0.0, 0.0, 1.0], (len(gt_t), 1))
+    write_tum(tmp_path / 'gt.txt', gt_t, path(gt_t - 100.0), quat)
+    t = 100.0 + np.arange(0.02, 11.9, 1.0 / 30.0)
+    world = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    truth = path(t - 100.0) @ world.T + np.array([1.0, 2.0, -0.5])
+    bump = ((t - 100.0 >= 4.0) & (t - 100.0 < 6.0))[:, None] * np.array([0.03, 0.0, 0.0])
+    run = tmp_path / 'run'
+    run.mkdir()
+    q = np.tile([0.0, 0.0, 0.0, 1.0], (len(t), 1))
+    write_tum(run / 'trajectory_online.txt', t, truth + bump + rng.normal(0, 0.002, truth.shape),
+              q)
+    write_tum(run / 'trajectory.txt', t, truth + rng.normal(0, 0.002, truth.shape), q)
+    return run
+
+
+def test_the_window_where_the_map_was_off_carries_the_online_error(tmp_path):
+    oe = load_script()
+    run = make_run(tmp_path)
+    gt = oe.co.load_ground_truth(str(tmp_path / 'gt.txt'), False)
+    rows, online, final = oe.analyse(gt, oe.pn.load(run / 'trajectory_online.txt'),
+                                     oe.pn.load(run / 'trajectory.txt'), 2.0)
+    assert len(rows) == 6  # 11.9 s in windows of 2 s
+    shares = [r[5] for r in rows]
+    assert abs(sum(shares) - 1.0) < 1e-9
+    worst = int(np.argmax([r[3] for r in rows]))
+    assert rows[worst][0] - 100.0 >= 3.9 and rows[worst][1] - 100.0 < 6.0
+    # Half the online ATE's sum of squares from a sixth of the run (the alignment of the whole run
+    # spreads part of the 3 cm over the other windows).
+    assert shares[worst] > 0.5
+    assert rows[worst][4] < 0.006  # the final trajectory is not off there
+    assert online > 3 * final
+    assert final < 0.005
+
+
+def test_prints_a_table_and_refuses_a_missing_run(tmp_path, capsys):
+    oe = load_script()
+    run = make_run(tmp_path)
+    assert oe.main([str(tmp_path / 'gt.txt'), str(run), '--window', '3']) == 0
+    out = capsys.readouterr().out
+    assert 'online mm' in out and 'ATE (median of 1)' in out
+    assert len([line for line in out.splitlines() if '%' in line]) == 4
+    assert oe.main([str(tmp_path / 'gt.txt'), str(tmp_path / 'nowhere')]) == 1
+    assert 'nowhere' in capsys.readouterr().err
+    assert oe.main([str(tmp_path / 'gt.txt'), str(run), '--window', '-1']) == 2
