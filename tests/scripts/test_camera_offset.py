@@ -1,20 +1,10 @@
 """scripts/camera_offset.py on trajectories made here (fixed seeds)."""
-import importlib.util
-import pathlib
 import subprocess
 import sys
 
 import numpy as np
 
-SCRIPTS = pathlib.Path(__file__).resolve().parents[2] / 'scripts'
-
-
-def load_script():
-    sys.path.insert(0, str(SCRIPTS))
-    spec = importlib.util.spec_from_file_location('camera_offset', SCRIPTS / 'camera_offset.py')
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+from script_loader import SCRIPTS, load
 
 
 def handheld(co, n=400, rate=30.0):
@@ -44,7 +34,7 @@ def smooth_drift(n, rng):
 
 
 def test_a_calibration_offset_is_found_and_lowers_the_held_out_halves():
-    co = load_script()
+    co = load('camera_offset')
     P, Rs = handheld(co)
     lever = np.array([-0.03, 0.0, 0.04])
     X = estimate_of(co, P, Rs, lever, np.random.default_rng(5))
@@ -63,7 +53,7 @@ def test_drift_is_not_taken_for_a_calibration_offset():
     # Fitted on one half, a lever arm absorbs some of that half's drift, which the other half's
     # drift does not share: held out, it rarely lowers the ATE by a fifth (2 of these 12 halves),
     # where a real offset lowers both halves by far more (the test above).
-    co = load_script()
+    co = load('camera_offset')
     P, Rs = handheld(co)
     lowered = 0
     for seed in range(6):

@@ -1,19 +1,8 @@
 """scripts/online_error.py on trajectories made here (fixed seeds)."""
-import importlib.util
-import pathlib
-import sys
 
 import numpy as np
 
-SCRIPTS = pathlib.Path(__file__).resolve().parents[2] / 'scripts'
-
-
-def load_script():
-    sys.path.insert(0, str(SCRIPTS))
-    spec = importlib.util.spec_from_file_location('online_error', SCRIPTS / 'online_error.py')
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+from script_loader import load
 
 
 def write_tum(path, stamps, positions, quats):
@@ -47,7 +36,7 @@ def make_run(tmp_path, seed=3):
 
 
 def test_the_window_where_the_map_was_off_carries_the_online_error(tmp_path):
-    oe = load_script()
+    oe = load('online_error')
     run = make_run(tmp_path)
     gt = oe.co.load_ground_truth(str(tmp_path / 'gt.txt'), False)
     rows, online, final = oe.analyse(gt, oe.pn.load(run / 'trajectory_online.txt'),
@@ -66,7 +55,7 @@ def test_the_window_where_the_map_was_off_carries_the_online_error(tmp_path):
 
 
 def test_prints_a_table_and_refuses_a_missing_run(tmp_path, capsys):
-    oe = load_script()
+    oe = load('online_error')
     run = make_run(tmp_path)
     assert oe.main([str(tmp_path / 'gt.txt'), str(run), '--window', '3']) == 0
     out = capsys.readouterr().out

@@ -1,17 +1,8 @@
 """scripts/pose_noise.py's own-jitter analysis on trajectories made here (fixed seed)."""
-import importlib.util
-import pathlib
 
 import numpy as np
 
-SCRIPT = pathlib.Path(__file__).resolve().parents[2] / 'scripts' / 'pose_noise.py'
-
-
-def load_script():
-    spec = importlib.util.spec_from_file_location('pose_noise', SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+from script_loader import load
 
 
 def smooth_path(pn, n=300, rate=30.0):
@@ -24,7 +15,7 @@ def smooth_path(pn, n=300, rate=30.0):
 
 
 def test_position_jitter_that_follows_the_rotation_jitter_is_found_with_its_lever():
-    pn = load_script()
+    pn = load('pose_noise')
     rng = np.random.default_rng(7)
     t, P, Rs = smooth_path(pn)
     lever = 2.5  # metres: a turn about the camera's x axis shifts it along its y axis
@@ -41,7 +32,7 @@ def test_position_jitter_that_follows_the_rotation_jitter_is_found_with_its_leve
 
 
 def test_independent_jitter_is_not_taken_for_coupling():
-    pn = load_script()
+    pn = load('pose_noise')
     rng = np.random.default_rng(11)
     t, P, Rs = smooth_path(pn)
     noisy_P = [p + rng.normal(0.0, 0.004, 3) for p in P]
@@ -54,7 +45,7 @@ def test_independent_jitter_is_not_taken_for_coupling():
 
 
 def test_a_smooth_path_has_no_jitter():
-    pn = load_script()
+    pn = load('pose_noise')
     t, P, Rs = smooth_path(pn)
     dp, dw = pn.own_jitter(t, P, Rs)
     assert np.sqrt(np.mean(dp ** 2)) < 1e-4  # the midpoint is linear in time: curvature only
