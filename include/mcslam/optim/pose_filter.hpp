@@ -149,7 +149,6 @@ struct PoseFilterStep {
   PoseFilterState filtered;
 };
 
-/// What the filter did with one measurement.
 /// What the filter made of a measurement.
 enum class FilterOutcome {
   kOff,           ///< the filter is off: the measurement as it is
@@ -162,6 +161,7 @@ enum class FilterOutcome {
 /// The outcome's name in summary.json ("off", "fused", "downweighted", "held", "restarted").
 const char* to_string(FilterOutcome outcome);
 
+/// What the filter did with one measurement.
 struct PoseFilterUpdate {
   SE3 T_c_w;         ///< the filtered pose
   double nis = 0.0;  ///< normalised innovation squared (0 on a start)
