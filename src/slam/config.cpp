@@ -75,6 +75,7 @@ std::vector<Field> mcslam_fields(PinholeCamera& c, SystemOptions& o) {
       {"planes.coplanar_angle_deg", &o.planes.coplanar_angle_deg},
       {"planes.coplanar_distance", &o.planes.coplanar_distance},
       {"tracker.close_depth_factor", &t.close_depth_factor},
+      {"tracker.keyframe_close_depth_factor", &t.keyframe_close_depth_factor},
       {"tracker.min_depth", &t.min_depth},
       {"tracker.max_depth", &t.max_depth},
       {"tracker.motion_search_radius", &t.motion_search_radius},
@@ -269,7 +270,6 @@ std::vector<Field> orbslam2_fields(PinholeCamera& c, SystemOptions& o) {
       {"Camera.k3", &c.distortion[4]},
       {"Camera.bf", &c.bf},
       {"DepthMapFactor", &c.depth_factor},
-      {"ThDepth", &o.tracker.close_depth_factor},
       {"ORBextractor.nFeatures", &o.orb.num_features},
       {"ORBextractor.nLevels", &o.orb.num_levels},
       {"ORBextractor.scaleFactor", &o.orb.scale_factor},
@@ -330,6 +330,10 @@ void apply_config(io::ConfigFile& file, PinholeCamera& camera, SystemOptions& op
   double fps = 0.0;
   if (file.read("Camera.fps", fps) && fps >= 1.0)
     options.tracker.max_frames_between_keyframes = static_cast<int>(fps);
+  // ORB-SLAM2's one close-depth threshold serves both of mcslam's.
+  double th_depth = 0.0;
+  if (file.read("ThDepth", th_depth))
+    options.tracker.close_depth_factor = options.tracker.keyframe_close_depth_factor = th_depth;
   for (const char* ignored :
        {"Viewer", "Camera.RGB", "Camera.type", "Camera.name", "PointCloudMapping", "File.version"})
     file.mark_used(ignored);

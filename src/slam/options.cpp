@@ -9,6 +9,8 @@ namespace mcslam::slam {
 
 std::optional<std::string> TrackerOptions::check() const {
   if (!(close_depth_factor > 0.0)) return "tracker.close_depth_factor must be positive";
+  if (!(keyframe_close_depth_factor > 0.0))
+    return "tracker.keyframe_close_depth_factor must be positive";
   if (!(min_depth >= 0.0) || !(max_depth > min_depth))
     return "tracker.min_depth must be >= 0 and below tracker.max_depth";
   if (!(motion_search_radius > 0.0)) return "tracker.motion_search_radius must be positive";

