@@ -195,6 +195,10 @@ Matrix12d PoseFilter::predict(double dt) {
   return F;
 }
 
+bool PoseFilter::noise_known() const {
+  return !(options_.noise_window > 0.0) || noise_.values() >= PoseNoiseEstimate::kMinValues;
+}
+
 PoseFilterUpdate PoseFilter::restarted_at(double timestamp, const SE3& T_c_w, double nis) {
   PoseFilterUpdate out;
   out.T_c_w = T_c_w;
@@ -222,9 +226,7 @@ bool PoseFilter::holds(const SE3& T_c_w, double nis, const Matrix6d& S_inv) {
   }
   // Until the frames' noise is measured their covariance is the optimiser's, which can
   // understate it many times over (noise_window): the gate then tells nothing.
-  const bool noise_known =
-      !(options_.noise_window > 0.0) || noise_.values() >= PoseNoiseEstimate::kMinValues;
-  if (!std::isfinite(nis) || map_jump || !noise_known || held_ >= options_.held_frames)
+  if (!std::isfinite(nis) || map_jump || !noise_known() || held_ >= options_.held_frames)
     return false;
   ++held_;
   return true;
@@ -248,8 +250,17 @@ PoseFilterUpdate PoseFilter::update(double timestamp, const SE3& T_c_w,
   }
   if (!continues || !information.allFinite()) {
     restart(timestamp, T_c_w, information.allFinite() ? information : Matrix6d::Zero(), false);
+    noise_known_ = noise_known();
     return restarted_at(timestamp, T_c_w, 0.0);
   }
+  // Until the frames' noise is measured the state's covariance holds their covariance as the
+  // optimiser gives it, which can understate it many times over (freiburg1_rpy: 85): the
+  // velocities the first frames gave count for that much more than they are worth, and taken
+  // at their word once the measurements count for what they are, they carry the pose away from
+  // the frames for several frames. When the noise is first known, the covariance is scaled by
+  // the factor found, as if the first frames had counted at their measured noise.
+  if (!noise_known_ && noise_known()) x_.P *= std::max(1.0, noise_.variance_factor());
+  noise_known_ = noise_known();
   PoseFilterStep step;
   step.timestamp = timestamp;
   step.F = predict(dt);

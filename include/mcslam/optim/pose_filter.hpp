@@ -214,6 +214,8 @@ class PoseFilter {
   /// Whether a measurement beyond the gate is held (held_frames) rather than restarted at.
   bool holds(const SE3& T_c_w, double nis, const Matrix6d& S_inv);
   PoseFilterUpdate restarted_at(double timestamp, const SE3& T_c_w, double nis);
+  /// Whether the frames' noise is measured (noise_window) or not asked for.
+  bool noise_known() const;
 
   PoseFilterOptions options_;
   bool started_ = false;
@@ -225,6 +227,7 @@ class PoseFilter {
   bool has_velocity_ = false;     // a measurement was fused since the last fresh start
   std::optional<SE3> map_moved_;  // the map's moves since the last measurement (not followed)
   PoseNoiseEstimate noise_;       // the measurements' noise against their covariance
+  bool noise_known_ = false;      // noise_ had kMinValues at the last measurement
 };
 
 }  // namespace mcslam::optim
