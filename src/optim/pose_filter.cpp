@@ -244,13 +244,13 @@ PoseFilterUpdate PoseFilter::update(double timestamp, const SE3& T_c_w,
   const bool continues = started_ && dt > 0.0 && dt <= options_.max_gap;
   const Matrix3d R_m = T_c_w.rotation();
   const Vector3d c_m = -(R_m.transpose() * T_c_w.translation());
+  const bool noise_was_known = noise_known();
   if (options_.noise_window > 0.0) {
     if (!continues) noise_.break_sequence();
     noise_.add(timestamp, R_m, c_m, information_on_centre(information, R_m));
   }
   if (!continues || !information.allFinite()) {
     restart(timestamp, T_c_w, information.allFinite() ? information : Matrix6d::Zero(), false);
-    noise_known_ = noise_known();
     return restarted_at(timestamp, T_c_w, 0.0);
   }
   // Until the frames' noise is measured the state's covariance holds their covariance as the
@@ -259,8 +259,7 @@ PoseFilterUpdate PoseFilter::update(double timestamp, const SE3& T_c_w,
   // at their word once the measurements count for what they are, they carry the pose away from
   // the frames for several frames. When the noise is first known, the covariance is scaled by
   // the factor found, as if the first frames had counted at their measured noise.
-  if (!noise_known_ && noise_known()) x_.P *= std::max(1.0, noise_.variance_factor());
-  noise_known_ = noise_known();
+  if (!noise_was_known && noise_known()) x_.P *= std::max(1.0, noise_.variance_factor());
   PoseFilterStep step;
   step.timestamp = timestamp;
   step.F = predict(dt);

@@ -1310,7 +1310,7 @@ bool Tracker::need_keyframe(const Frame& frame, const Associations& assoc, bool 
   }
   // Close points tracked / not tracked.
   int tracked_close = 0, untracked_close = 0;
-  const double close = options_.keyframe_close_depth_factor * camera_.bf / camera_.fx;
+  const double close = keyframe_close_depth();
   for (std::size_t i = 0; i < assoc.points.size(); ++i) {
     const auto& f = frame.features->points[i];
     if (!f.has_depth() || f.depth >= close) continue;

@@ -227,7 +227,6 @@ class PoseFilter {
   bool has_velocity_ = false;     // a measurement was fused since the last fresh start
   std::optional<SE3> map_moved_;  // the map's moves since the last measurement (not followed)
   PoseNoiseEstimate noise_;       // the measurements' noise against their covariance
-  bool noise_known_ = false;      // noise_ had kMinValues at the last measurement
 };
 
 }  // namespace mcslam::optim

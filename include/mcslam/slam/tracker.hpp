@@ -320,7 +320,10 @@ class Tracker {
   std::optional<SE3> last_frame_pose() const;
   /// Pose of a keyframe in the map, or of one still queued for the mapper.
   std::optional<SE3> keyframe_pose(map::KeyFrameId id) const;
-  double close_depth() const { return options_.close_depth_factor * camera_.bf / camera_.fx; }
+  double close_depth() const { return baselines(options_.close_depth_factor); }
+  double keyframe_close_depth() const { return baselines(options_.keyframe_close_depth_factor); }
+  /// `factor` stereo baselines in metres (bf / fx).
+  double baselines(double factor) const { return factor * camera_.bf / camera_.fx; }
 
   PinholeCamera camera_;
   TrackerOptions options_;
