@@ -61,11 +61,14 @@ std::vector<KeyFrameId> Map::best_covisible(KeyFrameId id, std::size_t n, int mi
   std::vector<std::pair<int, KeyFrameId>> ranked;
   for (const auto& [other, weight] : kf->covisibility)
     if (weight >= min_weight) ranked.emplace_back(weight, other);
-  std::sort(ranked.begin(), ranked.end(), [](const auto& a, const auto& b) {
+  // Only the first n are needed, in order (weight, then id: a total order, so the result does
+  // not depend on the hash map's order).
+  const auto first_n = ranked.begin() + static_cast<std::ptrdiff_t>(std::min(n, ranked.size()));
+  std::partial_sort(ranked.begin(), first_n, ranked.end(), [](const auto& a, const auto& b) {
     return a.first != b.first ? a.first > b.first : a.second < b.second;
   });
   std::vector<KeyFrameId> out;
-  for (std::size_t i = 0; i < ranked.size() && i < n; ++i) out.push_back(ranked[i].second);
+  for (auto it = ranked.begin(); it != first_n; ++it) out.push_back(it->second);
   return out;
 }
 

@@ -861,23 +861,32 @@ std::pair<std::vector<bool>, std::vector<bool>> Tracker::established_flags(
 }
 
 void Tracker::update_local_map(const Associations& assoc, const SE3& T_c_w) {
-  // Keyframes that observe the frame's landmarks, weighted by how many they share.
-  std::unordered_map<map::KeyFrameId, int> counts;
+  // Keyframes that observe the frame's landmarks, weighted by how many they share (counted in
+  // a vector indexed by keyframe id: the ids count up from 0).
+  std::vector<map::KeyFrameId> observers;
+  const auto count = [&](map::KeyFrameId id) {
+    if (id >= keyframe_counts_.size())
+      keyframe_counts_.resize(std::max<std::size_t>(id + 1, 2 * keyframe_counts_.size()), 0);
+    if (keyframe_counts_[id]++ == 0) observers.push_back(id);
+  };
   for (const Match& m : assoc.points) {
     if (!m.active || m.outlier || m.landmark == map::kNoId) continue;
     const map::MapPoint* mp = map_.point(m.landmark);
     if (mp == nullptr) continue;
-    for (const auto& obs : mp->observations) ++counts[obs.first];
+    for (const auto& obs : mp->observations) count(obs.first);
   }
   for (const LineMatch& m : assoc.lines) {
     if (!m.active || m.outlier || m.landmark == map::kNoId) continue;
     const map::MapLine* ml = map_.line(m.landmark);
     if (ml == nullptr) continue;
-    for (const auto& obs : ml->observations) ++counts[obs.first];
+    for (const auto& obs : ml->observations) count(obs.first);
   }
   std::vector<map::KeyFrameId>& local_keyframes = local_.keyframes;
   std::vector<std::pair<int, map::KeyFrameId>> ranked;
-  for (const auto& [id, n] : counts) ranked.emplace_back(n, id);
+  for (const map::KeyFrameId id : observers) {
+    ranked.emplace_back(keyframe_counts_[id], id);
+    keyframe_counts_[id] = 0;  // ready for the next frame
+  }
   std::sort(ranked.begin(), ranked.end(), [](const auto& a, const auto& b) {
     return a.first != b.first ? a.first > b.first : a.second > b.second;
   });
@@ -935,15 +944,15 @@ void Tracker::add_nearby_keyframes(const SE3& T_c_w, std::unordered_set<map::Key
 void Tracker::collect_local_landmarks() {
   local_.points.clear();
   local_.lines.clear();
-  std::unordered_set<map::PointId> seen;
-  std::unordered_set<map::LineId> seen_lines;
+  point_marks_.clear();
+  line_marks_.clear();
   for (map::KeyFrameId id : local_.keyframes) {
     const map::KeyFrame* kf = map_.keyframe(id);
     if (kf == nullptr) continue;
     for (map::PointId p : kf->landmarks)
-      if (p != map::kNoId && seen.insert(p).second) local_.points.push_back(p);
+      if (p != map::kNoId && point_marks_.insert(p)) local_.points.push_back(p);
     for (map::LineId l : kf->line_landmarks)
-      if (l != map::kNoId && seen_lines.insert(l).second) local_.lines.push_back(l);
+      if (l != map::kNoId && line_marks_.insert(l)) local_.lines.push_back(l);
   }
 }
 
@@ -951,14 +960,15 @@ int Tracker::search_local_points(const Frame& frame, const SE3& T_c_w, double ra
                                  std::vector<Match>& matches) {
   const auto& points = frame.features->points;
   const auto& pyramid = *frame.features->pyramid;
-  std::unordered_set<map::PointId> already;
+  IdMarks& already = point_marks_;
+  already.clear();
   for (const Match& m : matches)
     if (m.active && m.landmark != map::kNoId) already.insert(m.landmark);
   const Eigen::Vector3d center = T_c_w.inverse().translation();
   std::vector<int> candidates;
   int added = 0;
   for (map::PointId id : local_.points) {
-    if (already.count(id) != 0 || moved_set_.count(id) != 0) continue;
+    if (already.contains(id) || moved_set_.count(id) != 0) continue;
     const map::MapPoint* mp = map_.point(id);
     if (mp == nullptr) continue;
     const Eigen::Vector3d p_c = T_c_w * mp->p_w;
@@ -1012,13 +1022,14 @@ int Tracker::search_local_points(const Frame& frame, const SE3& T_c_w, double ra
 int Tracker::search_local_lines(const Frame& frame, const SE3& T_c_w,
                                 std::vector<LineMatch>& matches) {
   if (frame.features->lines.empty()) return 0;
-  std::unordered_set<map::LineId> already;
+  IdMarks& already = line_marks_;
+  already.clear();
   for (const LineMatch& m : matches)
     if (m.active && m.landmark != map::kNoId) already.insert(m.landmark);
   std::vector<features::PredictedLine> predicted;
   std::vector<const map::MapLine*> source;
   for (map::LineId id : local_.lines) {
-    if (already.count(id) != 0) continue;
+    if (already.contains(id)) continue;
     const map::MapLine* ml = map_.line(id);
     if (ml == nullptr) continue;
     auto line = project_segment(camera_, T_c_w, ml->start_w, ml->end_w);

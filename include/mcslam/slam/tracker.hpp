@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "mcslam/core/camera.hpp"
+#include "mcslam/core/id_marks.hpp"
 #include "mcslam/core/timing.hpp"
 #include "mcslam/map/map.hpp"
 #include "mcslam/optim/constraint_residual.hpp"
@@ -351,6 +352,12 @@ class Tracker {
   // Local map of the current frame.
   map::KeyFrameId reference_ = map::kNoId;
   LocalMap local_;
+  // The local map's points and lines while it is collected; the frame's matched points while
+  // the local map is searched.
+  IdMarks point_marks_;
+  IdMarks line_marks_;
+  // Per keyframe id, the landmarks it shares with the frame (zero between frames).
+  std::vector<int> keyframe_counts_;
   // Poses of keyframes requested but possibly not yet in the map.
   std::unordered_map<map::KeyFrameId, SE3> pending_keyframes_;
   // Statistics gathered since the last keyframe request.
