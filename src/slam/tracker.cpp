@@ -861,32 +861,21 @@ std::pair<std::vector<bool>, std::vector<bool>> Tracker::established_flags(
 }
 
 void Tracker::update_local_map(const Associations& assoc, const SE3& T_c_w) {
-  // Keyframes that observe the frame's landmarks, weighted by how many they share (counted in
-  // a vector indexed by keyframe id: the ids count up from 0).
-  std::vector<map::KeyFrameId> observers;
-  const auto count = [&](map::KeyFrameId id) {
-    if (id >= keyframe_counts_.size())
-      keyframe_counts_.resize(std::max<std::size_t>(id + 1, 2 * keyframe_counts_.size()), 0);
-    if (keyframe_counts_[id]++ == 0) observers.push_back(id);
-  };
+  // Keyframes that observe the frame's landmarks, weighted by how many they share.
   for (const Match& m : assoc.points) {
     if (!m.active || m.outlier || m.landmark == map::kNoId) continue;
     const map::MapPoint* mp = map_.point(m.landmark);
     if (mp == nullptr) continue;
-    for (const auto& obs : mp->observations) count(obs.first);
+    for (const auto& obs : mp->observations) keyframe_counts_.add(obs.first);
   }
   for (const LineMatch& m : assoc.lines) {
     if (!m.active || m.outlier || m.landmark == map::kNoId) continue;
     const map::MapLine* ml = map_.line(m.landmark);
     if (ml == nullptr) continue;
-    for (const auto& obs : ml->observations) count(obs.first);
+    for (const auto& obs : ml->observations) keyframe_counts_.add(obs.first);
   }
   std::vector<map::KeyFrameId>& local_keyframes = local_.keyframes;
-  std::vector<std::pair<int, map::KeyFrameId>> ranked;
-  for (const map::KeyFrameId id : observers) {
-    ranked.emplace_back(keyframe_counts_[id], id);
-    keyframe_counts_[id] = 0;  // ready for the next frame
-  }
+  std::vector<std::pair<int, map::KeyFrameId>> ranked = keyframe_counts_.take();
   std::sort(ranked.begin(), ranked.end(), [](const auto& a, const auto& b) {
     return a.first != b.first ? a.first > b.first : a.second > b.second;
   });

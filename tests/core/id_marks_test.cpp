@@ -37,5 +37,16 @@ TEST(IdMarks, AgreesWithAHashSetOverManyPasses) {
   }
 }
 
+TEST(IdCounts, CountsAPassAndStartsAgainAfterIt) {
+  IdCounts counts;
+  for (const std::uint64_t id : {9u, 3u, 9u, 9u, 0u, 3u}) counts.add(id);
+  const std::vector<std::pair<int, std::uint64_t>> expected = {{3, 9}, {2, 3}, {1, 0}};
+  EXPECT_EQ(counts.take(), expected);
+  EXPECT_TRUE(counts.take().empty());
+  counts.add(3);
+  const std::vector<std::pair<int, std::uint64_t>> again = {{1, 3}};
+  EXPECT_EQ(counts.take(), again);
+}
+
 }  // namespace
 }  // namespace mcslam

@@ -1,9 +1,10 @@
 #pragma once
-// Marks over dense ids, for the per-frame passes that must visit each landmark once.
+// Marks and counts over dense ids, for the per-frame passes over landmarks and keyframes.
 
 #include <algorithm>
 #include <cstddef>
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 namespace mcslam {
@@ -35,6 +36,32 @@ class IdMarks {
  private:
   std::vector<std::uint32_t> marks_;
   std::uint32_t stamp_ = 1;
+};
+
+/// Counts per id over one pass, in a vector indexed by id (see IdMarks), with the ids counted
+/// kept in the order they were first seen.
+class IdCounts {
+ public:
+  void add(std::uint64_t id) {
+    if (id >= counts_.size()) counts_.resize(std::max<std::size_t>(id + 1, 2 * counts_.size()), 0);
+    if (counts_[static_cast<std::size_t>(id)]++ == 0) seen_.push_back(id);
+  }
+  /// The (count, id) pairs of the pass, in first-seen order; the counts start again from zero.
+  std::vector<std::pair<int, std::uint64_t>> take() {
+    std::vector<std::pair<int, std::uint64_t>> out;
+    out.reserve(seen_.size());
+    for (const std::uint64_t id : seen_) {
+      int& count = counts_[static_cast<std::size_t>(id)];
+      out.emplace_back(count, id);
+      count = 0;
+    }
+    seen_.clear();
+    return out;
+  }
+
+ private:
+  std::vector<int> counts_;
+  std::vector<std::uint64_t> seen_;
 };
 
 }  // namespace mcslam

@@ -357,7 +357,7 @@ class Tracker {
   IdMarks point_marks_;
   IdMarks line_marks_;
   // Per keyframe id, the landmarks it shares with the frame (zero between frames).
-  std::vector<int> keyframe_counts_;
+  IdCounts keyframe_counts_;
   // Poses of keyframes requested but possibly not yet in the map.
   std::unordered_map<map::KeyFrameId, SE3> pending_keyframes_;
   // Statistics gathered since the last keyframe request.
