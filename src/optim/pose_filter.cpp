@@ -134,6 +134,7 @@ void PoseFilter::restart(double timestamp, const SE3& T_c_w, const Matrix6d& inf
   }
   started_ = true;
   held_ = 0;
+  held_measurement_.reset();
   map_moved_.reset();
   timestamp_ = timestamp;
   x_.R = T_c_w.rotation();
@@ -278,6 +279,7 @@ PoseFilterUpdate PoseFilter::update(double timestamp, const SE3& T_c_w,
   if (!std::isfinite(nis) || nis > options_.gate_chi2) {
     if (holds(T_c_w, nis, S_inv)) {
       // The prediction stands for this frame.
+      held_measurement_ = Measurement{timestamp, T_c_w, information};
       timestamp_ = timestamp;
       step.filtered = x_;
       PoseFilterUpdate out;
@@ -287,10 +289,14 @@ PoseFilterUpdate PoseFilter::update(double timestamp, const SE3& T_c_w,
       out.step = std::move(step);
       return out;
     }
+    const std::optional<Measurement> held =
+        held_ > 0 ? held_measurement_ : std::optional<Measurement>();
     restart(timestamp, T_c_w, information, true);
+    if (held) velocities_between(*held, T_c_w, information, timestamp);
     return restarted_at(timestamp, T_c_w, std::isfinite(nis) ? nis : 0.0);
   }
   held_ = 0;
+  held_measurement_.reset();
   map_moved_.reset();
   if (nis > options_.downweight_chi2) {
     // Huber: the measurement counts as a frame at the threshold would.
@@ -316,7 +322,43 @@ PoseFilterUpdate PoseFilter::update(double timestamp, const SE3& T_c_w,
   return out;
 }
 
+void PoseFilter::velocities_between(const Measurement& held, const SE3& T_c_w,
+                                    const Matrix6d& information, double timestamp) {
+  // Two frames in a row beyond the gate, each the other's confirmation: the camera jumped (the
+  // map moved under it) or moved otherwise than the velocities said (it accelerated beyond the
+  // model). Either way the velocities kept from before are what failed; kept, they predict the
+  // next frame off again, which is held, and the pose alternates between prediction and
+  // measurement. The two measurements tell the velocities since: y = [c; theta], u = (y_m -
+  // y_h) / dt, Cov(u) = (C_h + C_m) / dt^2, Cov(y_m, u) = C_m / dt.
+  const double dt = timestamp - held.timestamp;
+  if (!(dt > 0.0)) return;
+  const Matrix3d R_h = held.T_c_w.rotation(), R_m = T_c_w.rotation();
+  const Vector3d c_h = -(R_h.transpose() * held.T_c_w.translation());
+  const Vector3d c_m = -(R_m.transpose() * T_c_w.translation());
+  const auto covariance = [&](const Matrix6d& info, const Matrix3d& R) {
+    Matrix6d H = information_on_centre(info, R) / measurement_variance_factor();
+    H += Matrix6d::Identity();
+    return Matrix6d(H.inverse());
+  };
+  const Matrix6d C_h =
+      covariance(held.information.allFinite() ? held.information : Matrix6d::Zero(), R_h);
+  const Matrix6d C_m = covariance(information, R_m);
+  x_.v = (c_m - c_h) / dt;
+  x_.w = rotation_log(R_m * R_h.transpose()) / dt;
+  const Matrix6d C_u = (C_h + C_m) / (dt * dt);
+  const Matrix6d C_yu = C_m / dt;
+  const int y[2] = {kC, kTheta}, u[2] = {kV, kW};
+  for (int i = 0; i < 2; ++i)
+    for (int j = 0; j < 2; ++j) {
+      x_.P.block<3, 3>(u[i], u[j]) = C_u.block<3, 3>(3 * i, 3 * j);
+      x_.P.block<3, 3>(y[i], u[j]) = C_yu.block<3, 3>(3 * i, 3 * j);
+      x_.P.block<3, 3>(u[j], y[i]) = C_yu.block<3, 3>(3 * i, 3 * j).transpose();
+    }
+  has_velocity_ = true;
+}
+
 void PoseFilter::move_world(const SE3& W) {
+  if (held_measurement_) held_measurement_->T_c_w = held_measurement_->T_c_w * W.inverse();
   noise_.move_world(W);
   if (started_ && options_.follow_map) x_.move_world(W);
   if (started_ && !options_.follow_map) map_moved_ = map_moved_ ? W * *map_moved_ : W;

@@ -18,9 +18,11 @@
 // the acceleration (q_p, m^2/s^3) and the angular acceleration (q_r, rad^2/s^3):
 //   Var over dt of (position, velocity) per axis = q [dt^3/3, dt^2/2; dt^2/2, dt].
 // A measurement the model explains poorly (normalised innovation squared above chi-square's 95 %
-// point) counts less (Huber); one it cannot explain at all (above a gate) restarts the pose at
-// it, keeping the velocities (the camera did not stop). The tracker resets the filter after a
-// relocalisation; small corrections of the map reach the pose through the measurements.
+// point) counts less (Huber); one it cannot explain at all (above a gate) is held (the prediction
+// given out) and, if the next is beyond the gate too, the pose restarts at that one with the
+// velocities the two measurements give (a jump or a change of motion the model cannot follow:
+// the velocities before are what failed). The tracker resets the filter after a relocalisation;
+// small corrections of the map reach the pose through the measurements.
 
 #include <Eigen/Core>
 #include <optional>
@@ -213,6 +215,15 @@ class PoseFilter {
   Vector6d innovation(const SE3& T_c_w) const;
   /// Whether a measurement beyond the gate is held (held_frames) rather than restarted at.
   bool holds(const SE3& T_c_w, double nis, const Matrix6d& S_inv);
+  struct Measurement {
+    double timestamp = 0.0;
+    SE3 T_c_w;
+    Matrix6d information = Matrix6d::Zero();
+  };
+  /// After a restart at T_c_w that follows held frames: the velocities from the last held
+  /// frame's measurement to this one, with their covariance.
+  void velocities_between(const Measurement& held, const SE3& T_c_w, const Matrix6d& information,
+                          double timestamp);
   PoseFilterUpdate restarted_at(double timestamp, const SE3& T_c_w, double nis);
   /// Whether the frames' noise is measured (noise_window) or not asked for.
   bool noise_known() const;
@@ -226,7 +237,8 @@ class PoseFilter {
   int held_ = 0;                  // frames beyond the gate in a row, held (held_frames)
   bool has_velocity_ = false;     // a measurement was fused since the last fresh start
   std::optional<SE3> map_moved_;  // the map's moves since the last measurement (not followed)
-  PoseNoiseEstimate noise_;       // the measurements' noise against their covariance
+  std::optional<Measurement> held_measurement_;  // the last held frame's own pose
+  PoseNoiseEstimate noise_;                      // the measurements' noise against their covariance
 };
 
 }  // namespace mcslam::optim
