@@ -115,15 +115,16 @@ TEST(RollingShutter, TheFramesOwnShearCorrectsThePredictedAngularVelocity) {
       1e3 * predicted.report.ate.translation.rmse, 1e3 * predicted.online.ate.translation.rmse,
       1e3 * predicted.online.rpe_frame.translation.rmse, 1e3 * refined.report.ate.translation.rmse,
       1e3 * refined.online.ate.translation.rmse, 1e3 * refined.online.rpe_frame.translation.rmse);
-  // Measured: online ATE 51.1 -> 37.9 mm, RPE over one frame 66.4 -> 45.7 mm, trajectory.txt
+  // Measured: online ATE 33.2 -> 30.7 mm, RPE over one frame 12.0 -> 10.5 mm, trajectory.txt
   // 24.8 -> 23.4 mm (docs/rolling-shutter.md). The refinement changes each frame's pose, which is
   // what the online figures score; the final trajectory is the bundle adjustment's, which
-  // averages much of a frame's shear error out over the keyframes that see a point (30.5 ->
-  // 25.4 mm while the mapper made points only to 3.1 m, tracker.close_depth_factor 40).
+  // averages much of a frame's shear error out over the keyframes that see a point. (While the
+  // pose filter kept its velocities through a restart, its poses alternated between prediction
+  // and measurement here: 51.1 -> 37.9 mm and 66.4 -> 45.7 mm.)
   EXPECT_GE(refined.tracked, predicted.tracked);
-  EXPECT_LT(refined.online.ate.translation.rmse, 0.85 * predicted.online.ate.translation.rmse);
+  EXPECT_LT(refined.online.ate.translation.rmse, 0.95 * predicted.online.ate.translation.rmse);
   EXPECT_LT(refined.online.rpe_frame.translation.rmse,
-            0.85 * predicted.online.rpe_frame.translation.rmse);
+            0.95 * predicted.online.rpe_frame.translation.rmse);
   EXPECT_LT(refined.report.ate.translation.rmse, predicted.report.ate.translation.rmse);
 }
 
