@@ -134,7 +134,6 @@ void PoseFilter::restart(double timestamp, const SE3& T_c_w, const Matrix6d& inf
   }
   started_ = true;
   held_ = 0;
-  held_measurement_.reset();
   map_moved_.reset();
   timestamp_ = timestamp;
   x_.R = T_c_w.rotation();
@@ -217,9 +216,9 @@ Vector6d PoseFilter::innovation(const SE3& T_c_w) const {
   return z;
 }
 
-bool PoseFilter::holds(const SE3& T_c_w, double nis, const Matrix6d& S_inv) {
+bool PoseFilter::holds(const SE3& T_c_w, double nis, const Matrix6d& S_inv, bool& map_jump) {
   // A frame the map's move since the frame before explains (a loop correction) is a jump.
-  bool map_jump = false;
+  map_jump = false;
   if (map_moved_) {
     const Vector6d z_before = innovation(T_c_w * *map_moved_);
     map_jump = z_before.dot(S_inv * z_before) <= options_.gate_chi2;
@@ -241,6 +240,8 @@ PoseFilterUpdate PoseFilter::update(double timestamp, const SE3& T_c_w,
     return out;
   }
   const double dt = timestamp - timestamp_;
+  const std::optional<Measurement> previous = last_measurement_;
+  last_measurement_ = Measurement{timestamp, T_c_w, information};
   // Whether this measurement continues the last one (no start, no gap, time moves on).
   const bool continues = started_ && dt > 0.0 && dt <= options_.max_gap;
   const Matrix3d R_m = T_c_w.rotation();
@@ -277,9 +278,9 @@ PoseFilterUpdate PoseFilter::update(double timestamp, const SE3& T_c_w,
   const double nis = z.dot(S_inv * z);
   adapt(dt, nis);
   if (!std::isfinite(nis) || nis > options_.gate_chi2) {
-    if (holds(T_c_w, nis, S_inv)) {
+    bool map_jump = false;
+    if (holds(T_c_w, nis, S_inv, map_jump)) {
       // The prediction stands for this frame.
-      held_measurement_ = Measurement{timestamp, T_c_w, information};
       timestamp_ = timestamp;
       step.filtered = x_;
       PoseFilterUpdate out;
@@ -289,14 +290,15 @@ PoseFilterUpdate PoseFilter::update(double timestamp, const SE3& T_c_w,
       out.step = std::move(step);
       return out;
     }
-    const std::optional<Measurement> held =
-        held_ > 0 ? held_measurement_ : std::optional<Measurement>();
+    // Beyond the gate after a held frame, or before the gate can be trusted (the frames' noise
+    // not yet known), the velocities before are what failed, not the map: the frame before and
+    // this one give them. A jump the map's move explains keeps them (the camera did not stop).
+    const bool velocities_failed = !map_jump && (held_ > 0 || !noise_known());
     restart(timestamp, T_c_w, information, true);
-    if (held) velocities_between(*held, T_c_w, information, timestamp);
+    if (velocities_failed && previous) velocities_between(*previous, T_c_w, information, timestamp);
     return restarted_at(timestamp, T_c_w, std::isfinite(nis) ? nis : 0.0);
   }
   held_ = 0;
-  held_measurement_.reset();
   map_moved_.reset();
   if (nis > options_.downweight_chi2) {
     // Huber: the measurement counts as a frame at the threshold would.
@@ -322,30 +324,31 @@ PoseFilterUpdate PoseFilter::update(double timestamp, const SE3& T_c_w,
   return out;
 }
 
-void PoseFilter::velocities_between(const Measurement& held, const SE3& T_c_w,
+void PoseFilter::velocities_between(const Measurement& before, const SE3& T_c_w,
                                     const Matrix6d& information, double timestamp) {
-  // Two frames in a row beyond the gate, each the other's confirmation: the camera jumped (the
-  // map moved under it) or moved otherwise than the velocities said (it accelerated beyond the
-  // model). Either way the velocities kept from before are what failed; kept, they predict the
-  // next frame off again, which is held, and the pose alternates between prediction and
-  // measurement. The two measurements tell the velocities since: y = [c; theta], u = (y_m -
-  // y_h) / dt, Cov(u) = (C_h + C_m) / dt^2, Cov(y_m, u) = C_m / dt.
-  const double dt = timestamp - held.timestamp;
+  // A frame beyond the gate after a held one (each the other's confirmation: the camera jumped
+  // or moved otherwise than the velocities said, beyond the model), or beyond it while its noise
+  // is not yet known (the velocities then come from frames that counted for more than they were
+  // worth): the velocities kept from before are what failed. Kept, they predict the next frame
+  // off again, which is held, and the pose alternates between prediction and measurement. The
+  // frame before and this one tell the velocities since: y = [c; theta], u = (y_m - y_b) / dt,
+  // Cov(u) = (C_b + C_m) / dt^2, Cov(y_m, u) = C_m / dt.
+  const double dt = timestamp - before.timestamp;
   if (!(dt > 0.0)) return;
-  const Matrix3d R_h = held.T_c_w.rotation(), R_m = T_c_w.rotation();
-  const Vector3d c_h = -(R_h.transpose() * held.T_c_w.translation());
+  const Matrix3d R_b = before.T_c_w.rotation(), R_m = T_c_w.rotation();
+  const Vector3d c_b = -(R_b.transpose() * before.T_c_w.translation());
   const Vector3d c_m = -(R_m.transpose() * T_c_w.translation());
   const auto covariance = [&](const Matrix6d& info, const Matrix3d& R) {
     Matrix6d H = information_on_centre(info, R) / measurement_variance_factor();
     H += Matrix6d::Identity();
     return Matrix6d(H.inverse());
   };
-  const Matrix6d C_h =
-      covariance(held.information.allFinite() ? held.information : Matrix6d::Zero(), R_h);
+  const Matrix6d C_b =
+      covariance(before.information.allFinite() ? before.information : Matrix6d::Zero(), R_b);
   const Matrix6d C_m = covariance(information, R_m);
-  x_.v = (c_m - c_h) / dt;
-  x_.w = rotation_log(R_m * R_h.transpose()) / dt;
-  const Matrix6d C_u = (C_h + C_m) / (dt * dt);
+  x_.v = (c_m - c_b) / dt;
+  x_.w = rotation_log(R_m * R_b.transpose()) / dt;
+  const Matrix6d C_u = (C_b + C_m) / (dt * dt);
   const Matrix6d C_yu = C_m / dt;
   const int y[2] = {kC, kTheta}, u[2] = {kV, kW};
   for (int i = 0; i < 2; ++i)
@@ -358,7 +361,7 @@ void PoseFilter::velocities_between(const Measurement& held, const SE3& T_c_w,
 }
 
 void PoseFilter::move_world(const SE3& W) {
-  if (held_measurement_) held_measurement_->T_c_w = held_measurement_->T_c_w * W.inverse();
+  if (last_measurement_) last_measurement_->T_c_w = last_measurement_->T_c_w * W.inverse();
   noise_.move_world(W);
   if (started_ && options_.follow_map) x_.move_world(W);
   if (started_ && !options_.follow_map) map_moved_ = map_moved_ ? W * *map_moved_ : W;

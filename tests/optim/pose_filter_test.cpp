@@ -384,6 +384,34 @@ TEST(PoseFilter, AfterAJumpTheVelocitiesComeFromTheFramesThatMadeIt) {
   EXPECT_LT(worst_after, 0.005);
 }
 
+// The same change of velocity among the first frames, before their noise is known: the gate
+// restarts at once then, and with the velocities kept it restarted at every frame until the
+// noise was known and then alternated.
+TEST(PoseFilter, BeforeTheNoiseIsKnownARestartTakesTheVelocitiesFromTheFrames) {
+  Matrix6d cov = Matrix6d::Identity() * 0.0005 * 0.0005;
+  cov.block<3, 3>(3, 3) = Eigen::Matrix3d::Identity() * std::pow(0.03 * M_PI / 180.0, 2);
+  const Noisy run = simulate(80, 6, cov, bumped_at);
+  PoseFilter filter(exact());
+  int restarted = 0, held = 0;
+  double worst_after = 0.0;
+  // From 10.9 s: the bump comes at the fourth frame, while the noise is still unknown.
+  int first = 0;
+  while (run.times[first] < 10.9) ++first;
+  for (int k = first; k < 80; ++k) {
+    const PoseFilterUpdate u = filter.update(run.times[k], run.measured[k], cov.inverse());
+    if (run.times[k] < 11.0) continue;
+    restarted += u.restarted() ? 1 : 0;
+    held += u.held() ? 1 : 0;
+    if (run.times[k] > 11.0 + 2.5 * kDt)
+      worst_after = std::max(worst_after, (centre(u.T_c_w) - centre(run.truth[k])).norm());
+  }
+  std::printf("bumped before the noise is known: %d restarted, %d held, then at most %.1f mm\n",
+              restarted, held, worst_after * 1e3);
+  EXPECT_LE(restarted, 2);
+  EXPECT_EQ(held, 0);
+  EXPECT_LT(worst_after, 0.005);
+}
+
 TEST(PoseFilter, OneFrameFarOffTheMotionIsHeldAndForgotten) {
   const Matrix6d cov = valley_covariance();
   const Noisy run = simulate(60, 3, cov);

@@ -214,15 +214,15 @@ class PoseFilter {
   /// The measurement's centre and rotation against the state's ([dc; dtheta]).
   Vector6d innovation(const SE3& T_c_w) const;
   /// Whether a measurement beyond the gate is held (held_frames) rather than restarted at.
-  bool holds(const SE3& T_c_w, double nis, const Matrix6d& S_inv);
+  bool holds(const SE3& T_c_w, double nis, const Matrix6d& S_inv, bool& map_jump);
   struct Measurement {
     double timestamp = 0.0;
     SE3 T_c_w;
     Matrix6d information = Matrix6d::Zero();
   };
-  /// After a restart at T_c_w that follows held frames: the velocities from the last held
-  /// frame's measurement to this one, with their covariance.
-  void velocities_between(const Measurement& held, const SE3& T_c_w, const Matrix6d& information,
+  /// After a restart at T_c_w whose velocities failed: the velocities from the frame before's
+  /// measurement to this one, with their covariance.
+  void velocities_between(const Measurement& before, const SE3& T_c_w, const Matrix6d& information,
                           double timestamp);
   PoseFilterUpdate restarted_at(double timestamp, const SE3& T_c_w, double nis);
   /// Whether the frames' noise is measured (noise_window) or not asked for.
@@ -237,7 +237,7 @@ class PoseFilter {
   int held_ = 0;                  // frames beyond the gate in a row, held (held_frames)
   bool has_velocity_ = false;     // a measurement was fused since the last fresh start
   std::optional<SE3> map_moved_;  // the map's moves since the last measurement (not followed)
-  std::optional<Measurement> held_measurement_;  // the last held frame's own pose
+  std::optional<Measurement> last_measurement_;  // the last frame's own pose
   PoseNoiseEstimate noise_;                      // the measurements' noise against their covariance
 };
 
