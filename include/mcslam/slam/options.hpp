@@ -98,8 +98,8 @@ struct TrackerOptions {
   /// established landmarks (and the mapper is idle, or the view is being lost): ORB-SLAM2's 0.75
   /// with depth. 0.85 gives the mapper a keyframe as soon as it is idle and the view has changed
   /// (Bonn crowd part 1, threaded: `trajectory.txt` 12.3 -> 10.8 mm, online 14.1 -> 13.4, 0.97x the
-  /// frame rate) but takes 2-3 times the keyframes where the mapper keeps up, and the synthetic
-  /// rooms' online pose gets worse in places; docs/cli.md has the measurements.
+  /// frame rate), a gain from one window of one sequence (elsewhere neutral or against), and 2-3
+  /// times the keyframes where the mapper keeps up; docs/cli.md has the measurements.
   double keyframe_ref_ratio = 0.75;
   int close_tracked_threshold = 100;
   int close_untracked_threshold = 70;
