@@ -98,6 +98,7 @@ std::vector<Field> mcslam_fields(PinholeCamera& c, SystemOptions& o) {
       {"tracker.spatial_max_angle_deg", &t.spatial_max_angle_deg},
       {"tracker.max_frames_between_keyframes", &t.max_frames_between_keyframes},
       {"tracker.keyframe_ref_ratio", &t.keyframe_ref_ratio},
+      {"tracker.keyframe_interval", &t.keyframe_interval},
       {"tracker.close_tracked_threshold", &t.close_tracked_threshold},
       {"tracker.close_untracked_threshold", &t.close_untracked_threshold},
       {"tracker.relocalisation_candidates", &t.relocalisation_candidates},

@@ -40,6 +40,8 @@ std::optional<std::string> TrackerOptions::check() const {
     return "tracker.max_frames_between_keyframes must be at least 1";
   if (!(keyframe_ref_ratio > 0.0 && keyframe_ref_ratio <= 1.0))
     return "tracker.keyframe_ref_ratio must be in (0, 1]";
+  if (!(std::isfinite(keyframe_interval) && keyframe_interval >= 0.0))
+    return "tracker.keyframe_interval must be a number of seconds >= 0 (0: off)";
   if (relocalisation_candidates < 1) return "tracker.relocalisation_candidates must be >= 1";
   if (!std::isfinite(recovery_window) || recovery_window < 0.0)
     return "tracker.recovery_window must be finite and >= 0";

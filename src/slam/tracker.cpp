@@ -1324,8 +1324,11 @@ bool Tracker::need_keyframe(const Frame& frame, const Associations& assoc, bool 
                                                           options_.max_frames_between_keyframes);
   const bool c1b = mapper_idle;
   const bool c1c = inliers < 0.25 * reference_matches || need_close;
+  const bool due = options_.keyframe_interval > 0.0 &&
+                   frame.timestamp - last_keyframe_time_ >= options_.keyframe_interval;
   const bool c2 =
-      (inliers < options_.keyframe_ref_ratio * reference_matches || need_close) && inliers > 15;
+      (inliers < options_.keyframe_ref_ratio * reference_matches || need_close || due) &&
+      inliers > 15;
   if (!((c1a || c1b || c1c) && c2)) return false;
   return mapper_idle || mapper_queue < 3;
 }
@@ -1378,6 +1381,7 @@ KeyFrameRequest Tracker::make_keyframe(const Frame& frame, const Associations& a
   line_statistics_.clear();
   pending_keyframes_[request.id] = T_c_w;
   last_keyframe_frame_ = frame.id;
+  last_keyframe_time_ = frame.timestamp;
   reference_ = request.id;
   return request;
 }

@@ -126,6 +126,7 @@ TEST(Config, UnknownKeysAndBadValuesAreErrorsNamingTheFile) {
            {"tracker: {angular_velocity_sigma: 0}\n", "tracker.angular_velocity_sigma"},
            {"tracker: {refine_min_angular_velocity: -1}\n", "tracker.refine_min_angular_velocity"},
            {"tracker: {refine_rolling_shutter: often}\n", "tracker.refine_rolling_shutter"},
+           {"tracker: {keyframe_interval: -0.5}\n", "tracker.keyframe_interval"},
            {"system: {extract_ahead: maybe}\n", "system.extract_ahead"}}) {
     SystemOptions fresh;
     io::ConfigFile bad = io::ConfigFile::from_string(text, "tracker.yaml");

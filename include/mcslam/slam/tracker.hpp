@@ -343,6 +343,7 @@ class Tracker {
   map::KeyFrameId next_keyframe_id_ = 0;
   bool localize_ = false;
   std::uint64_t last_keyframe_frame_ = 0;
+  double last_keyframe_time_ = 0.0;
   std::uint64_t last_relocalisation_frame_ = 0;
   int solver_failures_ = 0;
   // The information of the frame's last pose optimisation, and the filter it goes to.
