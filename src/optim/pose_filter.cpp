@@ -122,6 +122,14 @@ double PoseFilter::measurement_variance_factor() const {
   return s2 * std::max(1.0, noise_.variance_factor());
 }
 
+Matrix6d PoseFilter::measurement_covariance(const Matrix6d& information,
+                                            const Matrix3d& R_c_w) const {
+  // A direction the measurement leaves free: 1 m, 1 rad.
+  Matrix6d H = information_on_centre(information, R_c_w) / measurement_variance_factor();
+  H += Matrix6d::Identity();
+  return H.inverse();
+}
+
 void PoseFilter::restart(double timestamp, const SE3& T_c_w, const Matrix6d& information,
                          bool keep_velocities) {
   const Matrix12d before = x_.P;
@@ -138,11 +146,9 @@ void PoseFilter::restart(double timestamp, const SE3& T_c_w, const Matrix6d& inf
   timestamp_ = timestamp;
   x_.R = T_c_w.rotation();
   x_.c = -(x_.R.transpose() * T_c_w.translation());
-  // The pose as uncertain as its measurement says (a direction it leaves free: 1 m, 1 rad); the
-  // velocities unknown at a handheld camera's scale (1 m/s, 2 rad/s).
-  Matrix6d H = information_on_centre(information, x_.R) / measurement_variance_factor();
-  H += Matrix6d::Identity();
-  const Matrix6d cov = H.inverse();
+  // The pose as uncertain as its measurement says; the velocities unknown at a handheld camera's
+  // scale (1 m/s, 2 rad/s).
+  const Matrix6d cov = measurement_covariance(information, x_.R);
   x_.P.setZero();
   x_.P.block<3, 3>(kC, kC) = cov.block<3, 3>(0, 0);
   x_.P.block<3, 3>(kC, kTheta) = cov.block<3, 3>(0, 3);
@@ -290,9 +296,8 @@ PoseFilterUpdate PoseFilter::update(double timestamp, const SE3& T_c_w,
       out.step = std::move(step);
       return out;
     }
-    // Beyond the gate after a held frame, or before the gate can be trusted (the frames' noise
-    // not yet known), the velocities before are what failed, not the map: the frame before and
-    // this one give them. A jump the map's move explains keeps them (the camera did not stop).
+    // A jump the map's move explains keeps the velocities (the camera did not stop);
+    // velocities_between says when they failed.
     const bool velocities_failed = !map_jump && (held_ > 0 || !noise_known());
     restart(timestamp, T_c_w, information, true);
     if (velocities_failed && previous) velocities_between(*previous, T_c_w, information, timestamp);
@@ -338,14 +343,9 @@ void PoseFilter::velocities_between(const Measurement& before, const SE3& T_c_w,
   const Matrix3d R_b = before.T_c_w.rotation(), R_m = T_c_w.rotation();
   const Vector3d c_b = -(R_b.transpose() * before.T_c_w.translation());
   const Vector3d c_m = -(R_m.transpose() * T_c_w.translation());
-  const auto covariance = [&](const Matrix6d& info, const Matrix3d& R) {
-    Matrix6d H = information_on_centre(info, R) / measurement_variance_factor();
-    H += Matrix6d::Identity();
-    return Matrix6d(H.inverse());
-  };
-  const Matrix6d C_b =
-      covariance(before.information.allFinite() ? before.information : Matrix6d::Zero(), R_b);
-  const Matrix6d C_m = covariance(information, R_m);
+  const Matrix6d C_b = measurement_covariance(
+      before.information.allFinite() ? before.information : Matrix6d::Zero(), R_b);
+  const Matrix6d C_m = measurement_covariance(information, R_m);
   x_.v = (c_m - c_b) / dt;
   x_.w = rotation_log(R_m * R_b.transpose()) / dt;
   const Matrix6d C_u = (C_b + C_m) / (dt * dt);

@@ -21,8 +21,10 @@
 // point) counts less (Huber); one it cannot explain at all (above a gate) is held (the prediction
 // given out) and, if the next is beyond the gate too, the pose restarts at that one with the
 // velocities the two measurements give (a jump or a change of motion the model cannot follow:
-// the velocities before are what failed). The tracker resets the filter after a relocalisation;
-// small corrections of the map reach the pose through the measurements.
+// the velocities before are what failed); so does a frame beyond the gate before the frames'
+// noise is known, at once. A jump the map's own move explains keeps the velocities. The tracker
+// resets the filter after a relocalisation; small corrections of the map reach the pose through
+// the measurements.
 
 #include <Eigen/Core>
 #include <optional>
@@ -225,6 +227,9 @@ class PoseFilter {
   void velocities_between(const Measurement& before, const SE3& T_c_w, const Matrix6d& information,
                           double timestamp);
   PoseFilterUpdate restarted_at(double timestamp, const SE3& T_c_w, double nis);
+  /// The covariance of a measurement on [dc; dtheta] at the measured noise, a direction it leaves
+  /// free held at 1 m and 1 rad.
+  Matrix6d measurement_covariance(const Matrix6d& information, const Eigen::Matrix3d& R_c_w) const;
   /// Whether the frames' noise is measured (noise_window) or not asked for.
   bool noise_known() const;
 
