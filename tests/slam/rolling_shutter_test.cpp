@@ -120,9 +120,7 @@ TEST(RollingShutter, TheFramesOwnShearCorrectsThePredictedAngularVelocity) {
   // trajectory is the bundle adjustment's, which averages much of a frame's shear error out over
   // the keyframes that see a point. Frame to frame the refined poses are rougher here (RPE over
   // one frame 7.7 -> 9.9 mm): on this render the refined rate is further from the truth than the
-  // predicted one, and the filter smooths the predicted rate's steadier poses better. (While the
-  // pose filter kept its velocities through a restart, its poses alternated between prediction
-  // and measurement here, which hid that: 51.1 -> 37.9 mm and RPE 66.4 -> 45.7 mm.)
+  // predicted one, and the filter smooths the predicted rate's steadier poses better.
   EXPECT_GE(refined.tracked, predicted.tracked);
   EXPECT_LT(refined.online.ate.translation.rmse, 0.97 * predicted.online.ate.translation.rmse);
   EXPECT_LT(refined.online.rpe_frame.translation.rmse,
