@@ -12,9 +12,13 @@ drift, cross-validates it: fitted on one half of the trajectory, applied to the 
 the alignment refitted there), and the other way round. A real calibration error lowers the ATE
 of the half it was not fitted on; drift fitted as an offset does not carry over.
 
-Usage: scripts/camera_offset.py [--bonn] GROUNDTRUTH.txt TRAJECTORY.txt [TRAJECTORY.txt ...]
+Usage: scripts/camera_offset.py [--bonn] [--frames K,K,...] GROUNDTRUTH.txt TRAJECTORY.txt [...]
   --bonn: the ground truth is Bonn RGB-D Dynamic's marker poses (converted to the camera as
           `mcslam eval --bonn` does).
+  --frames: also print, at these poses (0-based, in the trajectory's order), the position error
+          (mm) and the rotation error (mrad) in the camera's axes, with the whole run's lever arm
+          and alignment: where an error appears, and whether a turn and a sideways shift came
+          together (the pair that moves nearby points alike).
 Prints per trajectory: the ATE (rigid alignment), the lever arm fitted on the whole, the ATE with
 it, and per half the held-out ATE without and with the other half's lever arm (mm).
 """
@@ -55,17 +59,33 @@ def fit(X, P, Rs, lever=None, iterations=30):
     return rms(X - (Q @ R.T + t)), l
 
 
-def pairs(gt, estimate):
-    """The estimate's positions and the ground truth interpolated at their stamps."""
+def pairs(gt, estimate, rows=None):
+    """The estimate's positions and the ground truth interpolated at their stamps; with a list
+    `rows`, the indices of the estimate's poses kept are appended to it."""
     stamps, positions, quats = gt
     X, P, Rs = [], [], []
-    for row in estimate:
+    for k, row in enumerate(estimate):
         g = pn.interpolate(stamps, positions, quats, row[0])
         if g is not None:
             X.append(row[1:4])
             P.append(g[0])
             Rs.append(g[1])
+            if rows is not None:
+                rows.append(k)
     return np.array(X), np.array(P), np.array(Rs)
+
+
+def frame_errors(X, P, Rs, Re, lever):
+    """Per pose, the position error (m) and the rotation error (rad, axis-angle) of the estimate
+    (positions X, rotations Re, camera to world) in the camera's axes, after the rigid alignment
+    of the ground truth moved by the lever arm: the error of estimate i is
+    (R_A R_i)^T (x_i - R_A q_i - t_A) and log((R_A R_i)^T Re_i)."""
+    Q = P + np.einsum('nij,j->ni', Rs, lever)
+    R, t = pn.align(Q, X)
+    axes = np.einsum('ij,njk->nik', R, Rs)
+    position = np.einsum('nji,nj->ni', axes, X - (Q @ R.T + t))
+    rotation = np.array([pn.rotation_log(a.T @ r) for a, r in zip(axes, Re)])
+    return position, rotation
 
 
 def analyse(X, P, Rs):
@@ -93,9 +113,46 @@ def load_ground_truth(path, bonn):
     return raw[:, 0], raw[:, 1:4], raw[:, 4:8]
 
 
-def main(argv):
+def parse(argv):
+    """(bonn, frames or None, the rest); raises ValueError on a bad --frames."""
     bonn = '--bonn' in argv
     args = [a for a in argv if a != '--bonn']
+    frames = None
+    if '--frames' in args:
+        at = args.index('--frames')
+        if at + 1 >= len(args):
+            raise ValueError('--frames needs a list of pose indices')
+        try:
+            frames = [int(k) for k in args[at + 1].split(',')]
+        except ValueError:
+            raise ValueError(f'--frames {args[at + 1]}: not a list of integers') from None
+        if any(k < 0 for k in frames):
+            raise ValueError(f'--frames {args[at + 1]}: indices start at 0')
+        del args[at:at + 2]
+    return bonn, frames, args
+
+
+def print_frames(path, estimate, rows, X, P, Rs, lever, frames):
+    Re = np.array([pn.quat_matrix(estimate[k, 4:8]) for k in rows])
+    position, rotation = frame_errors(X, P, Rs, Re, lever)
+    where = {k: i for i, k in enumerate(rows)}
+    for k in frames:
+        if k not in where:
+            print(f'  pose {k}: not within the ground truth' if k < len(estimate)
+                  else f'  pose {k}: beyond the {len(estimate)} poses of {path}')
+            continue
+        i = where[k]
+        xyz = lambda v, scale: ' '.join(f'{scale * x:+6.1f}' for x in v)  # noqa: E731
+        print(f'  pose {k} (t {estimate[k, 0]:.3f}): position error ({xyz(position[i], 1000)}) mm,'
+              f' rotation error ({xyz(rotation[i], 1000)}) mrad, camera axes')
+
+
+def main(argv):
+    try:
+        bonn, frames, args = parse(argv)
+    except ValueError as e:
+        print(f'camera_offset.py: {e}', file=sys.stderr)
+        return 2
     if len(args) < 2:
         print(__doc__.strip().split('\n\n')[-2], file=sys.stderr)
         return 2
@@ -105,8 +162,10 @@ def main(argv):
         print(f'camera_offset.py: {args[0]}: cannot read the ground truth ({e})', file=sys.stderr)
         return 1
     for path in args[1:]:
+        rows = []
         try:
-            X, P, Rs = pairs(gt, pn.load(path))
+            estimate = pn.load(path)
+            X, P, Rs = pairs(gt, estimate, rows)
         except (OSError, ValueError, IndexError) as e:
             print(f'camera_offset.py: {path}: cannot read the trajectory ({e})', file=sys.stderr)
             return 1
@@ -119,6 +178,8 @@ def main(argv):
         print(f'{path}: ATE {1000 * ate:.1f} mm; lever arm ({mm(lever)}) mm -> {1000 * ate_lever:.1f}'
               f' mm; held-out halves: ' + ', '.join(
                   f'{1000 * w:.1f} -> {1000 * l:.1f} mm (lever {mm(v)})' for w, l, v in held_out))
+        if frames:
+            print_frames(path, estimate, rows, X, P, Rs, lever, frames)
     return 0
 
 

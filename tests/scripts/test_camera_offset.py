@@ -82,3 +82,42 @@ def test_bad_input_is_named(tmp_path):
     run = subprocess.run([sys.executable, str(SCRIPTS / 'camera_offset.py'), str(gt)],
                          capture_output=True, text=True)
     assert run.returncode == 2
+
+
+def test_an_error_at_one_pose_is_given_in_the_camera_axes():
+    # A sideways shift of 3 cm and a turn of 10 mrad about the camera's y axis at pose 200 alone,
+    # in an estimate of its own world: both come back in the camera's axes, the other poses' near
+    # zero.
+    co = load('camera_offset')
+    P, Rs = handheld(co)
+    W = co.pn.rotation_exp(np.array([0.1, -0.4, 0.2]))
+    X = estimate_of(co, P, Rs, np.zeros(3), np.random.default_rng(3), noise=0.0005)
+    Re = np.array([W @ R for R in Rs])
+    shift, turn = np.array([0.03, 0.0, 0.0]), np.array([0.0, 0.01, 0.0])
+    X[200] += W @ Rs[200] @ shift
+    Re[200] = Re[200] @ co.pn.rotation_exp(turn)
+    position, rotation = co.frame_errors(X, P, Rs, Re, np.zeros(3))
+    assert np.linalg.norm(position[200] - shift) < 0.002
+    # The alignment's rotation is fitted to the positions (0.5 mm noise): 0.2 mrad off here.
+    assert np.linalg.norm(rotation[200] - turn) < 1e-3
+    assert np.linalg.norm(position[150]) < 0.002 and np.linalg.norm(rotation[150]) < 1e-3
+
+
+def test_frames_are_printed_and_bad_frames_named(tmp_path):
+    co = load('camera_offset')
+    P, Rs = handheld(co, n=60)
+    gt = tmp_path / 'groundtruth.txt'
+    est = tmp_path / 'trajectory.txt'
+    rows = [[i / 30.0, *P[i], *co.pn.matrix_quat(Rs[i])] for i in range(len(P))]
+    gt.write_text(''.join(' '.join(f'{x:.9f}' for x in r) + '\n' for r in rows))
+    est.write_text(''.join(' '.join(f'{x:.9f}' for x in r) + '\n' for r in rows[5:]))
+    script = str(SCRIPTS / 'camera_offset.py')
+    run = subprocess.run([sys.executable, script, '--frames', '0,10,99', str(gt), str(est)],
+                         capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    assert 'pose 0 (t 0.167)' in run.stdout and 'pose 10 (t 0.500)' in run.stdout
+    assert '+0.0' in run.stdout and 'pose 99: beyond the 55 poses' in run.stdout
+    for bad in (['--frames', 'a,b'], ['--frames', '-1'], ['--frames']):
+        run = subprocess.run([sys.executable, script, *bad, str(gt), str(est)],
+                             capture_output=True, text=True)
+        assert run.returncode == 2 and '--frames' in run.stderr
