@@ -35,13 +35,20 @@ def rms(e):
     return float(np.sqrt(np.mean(np.sum(e ** 2, axis=1))))
 
 
+def aligned(X, P, Rs, lever):
+    """The ground truth's positions moved by the lever arm (Q), and the rigid alignment R, t with
+    X ~ R Q + t."""
+    Q = P + np.einsum('nij,j->ni', Rs, lever)
+    R, t = pn.align(Q, X)
+    return Q, R, t
+
+
 def fit(X, P, Rs, lever=None, iterations=30):
     """Aligns ground-truth positions P (rotations Rs, camera to world) moved by a lever arm to
     the estimate's X. lever None: the lever arm is fitted too. Returns (ATE in m, lever arm)."""
     l = np.zeros(3) if lever is None else np.asarray(lever, dtype=float)
     for _ in range(iterations):
-        Q = P + np.einsum('nij,j->ni', Rs, l)
-        R, t = pn.align(Q, X)
+        _, R, _ = aligned(X, P, Rs, l)
         if lever is not None:
             break
         # X - R P = t + (R R_i) l: linear in [t; l].
@@ -54,8 +61,7 @@ def fit(X, P, Rs, lever=None, iterations=30):
             l = step[3:]
             break
         l = step[3:]
-    Q = P + np.einsum('nij,j->ni', Rs, l)
-    R, t = pn.align(Q, X)
+    Q, R, t = aligned(X, P, Rs, l)
     return rms(X - (Q @ R.T + t)), l
 
 
@@ -80,8 +86,7 @@ def frame_errors(X, P, Rs, Re, lever):
     (positions X, rotations Re, camera to world) in the camera's axes, after the rigid alignment
     of the ground truth moved by the lever arm: the error of estimate i is
     (R_A R_i)^T (x_i - R_A q_i - t_A) and log((R_A R_i)^T Re_i)."""
-    Q = P + np.einsum('nij,j->ni', Rs, lever)
-    R, t = pn.align(Q, X)
+    Q, R, t = aligned(X, P, Rs, lever)
     axes = np.einsum('ij,njk->nik', R, Rs)
     position = np.einsum('nji,nj->ni', axes, X - (Q @ R.T + t))
     rotation = np.array([pn.rotation_log(a.T @ r) for a, r in zip(axes, Re)])
@@ -136,13 +141,13 @@ def print_frames(path, estimate, rows, X, P, Rs, lever, frames):
     Re = np.array([pn.quat_matrix(estimate[k, 4:8]) for k in rows])
     position, rotation = frame_errors(X, P, Rs, Re, lever)
     where = {k: i for i, k in enumerate(rows)}
+    xyz = lambda v, scale: ' '.join(f'{scale * x:+6.1f}' for x in v)  # noqa: E731
     for k in frames:
         if k not in where:
             print(f'  pose {k}: not within the ground truth' if k < len(estimate)
                   else f'  pose {k}: beyond the {len(estimate)} poses of {path}')
             continue
         i = where[k]
-        xyz = lambda v, scale: ' '.join(f'{scale * x:+6.1f}' for x in v)  # noqa: E731
         print(f'  pose {k} (t {estimate[k, 0]:.3f}): position error ({xyz(position[i], 1000)}) mm,'
               f' rotation error ({xyz(rotation[i], 1000)}) mrad, camera axes')
 
