@@ -368,15 +368,23 @@ void LocalMapper::associate_planes(map::KeyFrameId id) {
     // The frame plane in the world: n_w = R_w_c n_c, d_w = d_c + n_c . t_c_w.
     const Eigen::Vector3d n_w = R_w_c * planes[i].normal;
     const double d_w = planes[i].d + planes[i].normal.dot(t_c_w);
+    const optim::PlaneMeasurement measured = plane_measurement_of(
+        planes[i], tracker_options_.plane_angle_sigma_deg, tracker_options_.plane_distance_sigma);
     map::PlaneId best = map::kNoId;
     double best_score = 2.0;
     for (const auto& [pid, mp] : map_.planes()) {
       if (mp.observations.count(id) != 0) continue;
       const auto score = plane_match_score(tracker_options_, mp.normal, mp.d, n_w, d_w);
-      if (score && *score < best_score) {
-        best_score = *score;
-        best = pid;
-      }
+      if (!score || *score >= best_score) continue;
+      // The match window is wider than the measurement's noise (it absorbs the prediction's
+      // error in the tracker); the keyframe's pose is solved, so the association must also pass
+      // the chi-square test the tracker's and bundle adjustment's outlier tests apply.
+      const Eigen::Vector3d n_c = R_w_c.transpose() * mp.normal;
+      if (!(optim::plane_chi2(measured, n_c, mp.d - n_c.dot(t_c_w)) <=
+            tracker_options_.pose.chi2_plane))
+        continue;
+      best_score = *score;
+      best = pid;
     }
     std::vector<Eigen::Vector3d> hull_w;
     for (const auto& h : planes[i].hull) hull_w.push_back(T_w_c * h);
