@@ -3,8 +3,10 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <memory>
 #include <numbers>
 #include <stdexcept>
+#include <utility>
 
 #include "mcslam/core/thread_failure.hpp"
 #include "mcslam/map/correction.hpp"
