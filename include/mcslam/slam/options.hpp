@@ -104,8 +104,8 @@ struct TrackerOptions {
   /// A keyframe also once this many seconds have passed since the last one, whatever share of
   /// the reference's landmarks the frame still tracks (0: off, ORB-SLAM2's rule alone). Panning
   /// back over mapped ground the rule alone leaves Bonn crowd part 1 1.4-1.8 s without one; 0.5
-  /// lowers its online ATE 14.2 -> 13.1 mm at 0.95x the frame rate, but not --realtime's (13.1 ->
-  /// 14.1), and three synthetic dynamic scenes' online pose gets worse; docs/cli.md.
+  /// lowers its online ATE 14.2 -> 13.1 mm (--realtime's 14.6 -> 14.1) at 0.95x the frame rate,
+  /// but the synthetic dynamic scenes' online pose gets worse (0.1-0.7 mm); docs/cli.md.
   double keyframe_interval = 0.0;
   int close_tracked_threshold = 100;
   int close_untracked_threshold = 70;
