@@ -122,12 +122,9 @@ void classify(const PinholeCamera& camera, const BundleAdjustmentProblem& proble
   }
   for (std::size_t k = 0; k < problem.plane_observations.size(); ++k) {
     const auto& obs = problem.plane_observations[k];
-    const SE3 T_c_w = pose_at(poses, obs.pose);
-    const Eigen::Vector4d& plane = problem.planes[static_cast<std::size_t>(obs.plane)];
-    const Eigen::Vector3d n_c = T_c_w.rotation() * plane.head<3>();
     result.plane_inlier[k] =
-        plane_chi2(obs.measurement, n_c, plane.w() - n_c.dot(T_c_w.translation())) <=
-        options.chi2_plane;
+        plane_chi2(obs.measurement, pose_at(poses, obs.pose),
+                   problem.planes[static_cast<std::size_t>(obs.plane)]) <= options.chi2_plane;
   }
 }
 

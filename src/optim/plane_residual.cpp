@@ -206,4 +206,9 @@ double plane_chi2(const PlaneMeasurement& m, const Eigen::Vector3d& n_c, double 
          e.z() * e.z() * m.distance_information;
 }
 
+double plane_chi2(const PlaneMeasurement& m, const SE3& T_c_w, const Eigen::Vector4d& plane_w) {
+  const Eigen::Vector3d n_c = T_c_w.rotation() * plane_w.head<3>();
+  return plane_chi2(m, n_c, plane_w.w() - n_c.dot(T_c_w.translation()));
+}
+
 }  // namespace mcslam::optim

@@ -116,9 +116,7 @@ void classify(const PinholeCamera& camera, const PoseProblem& problem, const SE3
   result.num_plane_inliers = 0;
   for (std::size_t i = 0; i < problem.planes.size(); ++i) {
     const auto& obs = problem.planes[i];
-    const Eigen::Vector3d n_c = T_c_w.rotation() * obs.plane_w.head<3>();
-    const double d_c = obs.plane_w.w() - n_c.dot(T_c_w.translation());
-    result.plane_inlier[i] = plane_chi2(obs.measurement, n_c, d_c) <= options.chi2_plane;
+    result.plane_inlier[i] = plane_chi2(obs.measurement, T_c_w, obs.plane_w) <= options.chi2_plane;
     result.num_plane_inliers += result.plane_inlier[i] ? 1 : 0;
   }
   result.num_constrained_point_inliers = 0;

@@ -358,9 +358,10 @@ void LocalMapper::associate_planes(map::KeyFrameId id) {
   auto lock = map_.write_lock();
   const map::KeyFrame* kf = map_.keyframe(id);
   if (kf == nullptr) return;
-  const SE3 T_w_c = kf->T_w_c();
+  const SE3 T_c_w = kf->T_c_w;
+  const SE3 T_w_c = T_c_w.inverse();
   const Eigen::Matrix3d R_w_c = T_w_c.rotation();
-  const Eigen::Vector3d t_c_w = kf->T_c_w.translation();
+  const Eigen::Vector3d t_c_w = T_c_w.translation();
   const auto planes = kf->features->planes;
   const auto landmarks = kf->plane_landmarks;
   for (std::size_t i = 0; i < planes.size(); ++i) {
@@ -379,8 +380,7 @@ void LocalMapper::associate_planes(map::KeyFrameId id) {
       // The match window is wider than the measurement's noise (it absorbs the prediction's
       // error in the tracker); the keyframe's pose is solved, so the association must also pass
       // the chi-square test the tracker's and bundle adjustment's outlier tests apply.
-      const Eigen::Vector3d n_c = R_w_c.transpose() * mp.normal;
-      if (!(optim::plane_chi2(measured, n_c, mp.d - n_c.dot(t_c_w)) <=
+      if (!(optim::plane_chi2(measured, T_c_w, mp.coefficients()) <=
             tracker_options_.pose.chi2_plane))
         continue;
       best_score = *score;

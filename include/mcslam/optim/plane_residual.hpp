@@ -20,6 +20,8 @@
 
 #include <Eigen/Core>
 
+#include "mcslam/core/se3.hpp"
+
 namespace mcslam::optim {
 
 /// q(n, d) of equation (1), phi by atan2 (in (-pi, pi]).
@@ -79,5 +81,7 @@ class PoseOnlyPlaneError final : public ceres::SizedCostFunction<3, 7> {
 Eigen::Vector3d plane_error(const PlaneMeasurement& m, const Eigen::Vector3d& n_c, double d_c);
 /// Its chi-square (whitened squared norm), for outlier tests.
 double plane_chi2(const PlaneMeasurement& m, const Eigen::Vector3d& n_c, double d_c);
+/// The same for a world plane [n, d] (|n| = 1) seen from T_c_w: n_c = R n, d_c = d - n_c . t.
+double plane_chi2(const PlaneMeasurement& m, const SE3& T_c_w, const Eigen::Vector4d& plane_w);
 
 }  // namespace mcslam::optim
