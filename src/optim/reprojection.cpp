@@ -37,11 +37,12 @@ ReprojectionError<kDim>::ReprojectionError(const PinholeCamera& camera, const Po
       cx_(camera.cx),
       cy_(camera.cy),
       bf_(camera.bf),
+      disparity_(m.depth_term == DepthTerm::kDisparity),
       sqrt_information_(std::sqrt(m.information)),
       sqrt_right_information_(std::sqrt(m.right_information)) {
   observed_[0] = m.uv.x();
   observed_[1] = m.uv.y();
-  if constexpr (kDim == 3) observed_[2] = m.u_right;
+  if constexpr (kDim == 3) observed_[2] = disparity_ ? m.disparity() : m.u_right;
 }
 
 template <int kDim>
@@ -58,15 +59,21 @@ bool ReprojectionError<kDim>::Evaluate(double const* const* parameters, double* 
   Eigen::Map<Eigen::Matrix<double, kDim, 1>> r(residuals);
   r[0] = sqrt_information_ * (u - observed_[0]);
   r[1] = sqrt_information_ * (v - observed_[1]);
-  if constexpr (kDim == 3) r[2] = sqrt_right_information_ * ((u - bf_ * inv_z) - observed_[2]);
+  if constexpr (kDim == 3)
+    r[2] = sqrt_right_information_ * ((disparity_ ? bf_ * inv_z : u - bf_ * inv_z) - observed_[2]);
   if (jacobians == nullptr || (jacobians[0] == nullptr && jacobians[1] == nullptr)) return true;
 
   Eigen::Matrix<double, kDim, 3> d_pc;
   d_pc.row(0) << fx_ * inv_z, 0.0, -fx_ * p_c.x() * inv_z * inv_z;
   d_pc.row(1) << 0.0, fy_ * inv_z, -fy_ * p_c.y() * inv_z * inv_z;
   if constexpr (kDim == 3) {
-    d_pc.row(2) = d_pc.row(0);
-    d_pc(2, 2) += bf_ * inv_z * inv_z;
+    // d(bf / z) = -bf / z^2 dz; u_r = u - bf / z adds u's row.
+    if (disparity_) {
+      d_pc.row(2) << 0.0, 0.0, -bf_ * inv_z * inv_z;
+    } else {
+      d_pc.row(2) = d_pc.row(0);
+      d_pc(2, 2) += bf_ * inv_z * inv_z;
+    }
     d_pc.row(2) *= sqrt_right_information_;
   }
   d_pc.template topRows<2>() *= sqrt_information_;
@@ -105,8 +112,10 @@ double reprojection_chi2(const PinholeCamera& camera, const PointMeasurement& m,
   const Eigen::Vector2d uv = camera.project(p_c);
   double chi2 = (uv - m.uv).squaredNorm() * m.information;
   if (m.has_depth()) {
-    const double ur = uv.x() - camera.bf / p_c.z();
-    chi2 += (ur - m.u_right) * (ur - m.u_right) * m.right_information;
+    const double e = m.depth_term == DepthTerm::kDisparity
+                         ? camera.bf / p_c.z() - m.disparity()
+                         : camera.right_u(uv.x(), p_c.z()) - m.u_right;
+    chi2 += e * e * m.right_information;
   }
   return chi2;
 }

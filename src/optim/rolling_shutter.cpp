@@ -28,7 +28,8 @@ AngularVelocityCorrection estimate_angular_velocity_correction(
   // Jointly with the pose's own correction (tangent xi, T' = exp(xi) T): a turn of the angular
   // velocity shears the image much as part of a turn of the pose moves it, so the two are
   // estimated together and the pose is eliminated (Schur complement). Rows: u, v and, with
-  // depth, the virtual right coordinate u_r = u - bf / z, which moves with u under d.
+  // depth, the virtual right coordinate u_r = u - bf / z, which moves with u under d, or the
+  // disparity bf / z, which d leaves as it is (DepthTerm).
   using Matrix9d = Eigen::Matrix<double, 9, 9>;
   using Vector9d = Eigen::Matrix<double, 9, 1>;
   AngularVelocityCorrection out;
@@ -57,11 +58,17 @@ AngularVelocityCorrection estimate_angular_velocity_correction(
     J.block<2, 3>(0, 6) = -J_d;
     e.head<2>() = camera.project(p_c) - uv;
     if (m.with_depth) {
-      Eigen::RowVector3d d_ur = J_pi.row(0);
-      d_ur.z() += camera.bf / (p_c.z() * p_c.z());
-      J.block<1, 6>(2, 0) = d_ur * dp;
-      J.block<1, 3>(2, 6) = -J_d.row(0);
-      e.z() = camera.right_u(camera.project(p_c).x(), p_c.z()) - m.u_right;
+      const double bf_z2 = camera.bf / (p_c.z() * p_c.z());
+      if (m.depth_term == DepthTerm::kDisparity) {
+        J.block<1, 6>(2, 0) = Eigen::RowVector3d(0.0, 0.0, -bf_z2) * dp;
+        e.z() = camera.bf / p_c.z() - m.disparity();
+      } else {
+        Eigen::RowVector3d d_ur = J_pi.row(0);
+        d_ur.z() += bf_z2;
+        J.block<1, 6>(2, 0) = d_ur * dp;
+        J.block<1, 3>(2, 6) = -J_d.row(0);
+        e.z() = camera.right_u(camera.project(p_c).x(), p_c.z()) - m.u_right;
+      }
       w.z() = m.right_information;
     }
     H.noalias() += J.transpose() * w.asDiagonal() * J;
@@ -97,7 +104,8 @@ void apply_angular_velocity_correction(const PinholeCamera& camera, double reado
     PointMeasurement& m = obs.measurement;
     const double tau = row_time(camera, m.uv.y(), readout_time);
     const Eigen::Vector2d uv = shutter_corrected_uv(camera, m.uv, tau, d);
-    // The depth is unchanged to first order (a turn of at most milliradians): u_r moves with u.
+    // The depth is unchanged to first order (a turn of at most milliradians): u_r moves with u
+    // and the disparity u - u_r stays.
     if (m.with_depth) m.u_right += uv.x() - m.uv.x();
     m.uv = uv;
   }

@@ -199,6 +199,55 @@ PerturbedProblem perturbed_problem(const PinholeCamera& cam, int poses, int poin
   return out;
 }
 
+/// A point 3 m in front of two cameras 0.2 m apart (both fixed), each keypoint with its depth
+/// exact and the second keypoint found 1 px to the right: where bundle adjustment puts the point
+/// along the first camera's ray, as the change of its depth there (m), for a depth term and its
+/// weight. The 1 px alone, triangulated, would move it 86 mm (z^2 / (f b)).
+double depth_moved_by_a_keypoint_error(DepthTerm term, double weight) {
+  const PinholeCamera cam = test::make_camera();
+  BundleAdjustmentProblem problem;
+  Vector6d xi = Vector6d::Zero();
+  xi(0) = -0.2;
+  problem.poses = {SE3(), SE3::exp(xi)};
+  problem.pose_fixed = {true, true};
+  const Eigen::Vector3d truth(0.3, -0.1, 3.0);
+  problem.points = {truth};
+  for (int k = 0; k < 2; ++k) {
+    const Eigen::Vector3d p_c = problem.poses[static_cast<std::size_t>(k)] * truth;
+    BundleAdjustmentProblem::Observation obs;
+    obs.pose = k;
+    obs.point = 0;
+    obs.measurement.uv = cam.project(p_c);
+    obs.measurement.u_right = cam.right_u(obs.measurement.uv.x(), p_c.z());
+    obs.measurement.with_depth = true;
+    obs.measurement.depth_term = term;
+    obs.measurement.right_information = weight;
+    if (k == 1) {
+      obs.measurement.uv.x() += 1.0;  // the keypoint is off; the depth image is not
+      obs.measurement.u_right += 1.0;
+    }
+    problem.observations.push_back(obs);
+  }
+  BundleAdjustmentOptions options;
+  options.robust_iterations = 10;
+  options.refine_iterations = 10;
+  bundle_adjust(cam, problem, options);
+  return problem.points[0].z() - truth.z();
+}
+
+// With the virtual right coordinate, the point's depth follows the keypoint's error: u_r = u -
+// bf / z moves with u, so the solve trades the depth for the parallax the 1 px asks for, however
+// heavily u_r is weighted. The disparity holds the depth where the depth images put it, as
+// firmly as its weight says.
+TEST(BundleAdjustment, ThePointsDepthHoldsAgainstAKeypointErrorWithTheDisparity) {
+  for (double weight : {4.0, 100.0}) {
+    EXPECT_GT(std::abs(depth_moved_by_a_keypoint_error(DepthTerm::kRightU, weight)), 0.06)
+        << weight;
+  }
+  EXPECT_LT(std::abs(depth_moved_by_a_keypoint_error(DepthTerm::kDisparity, 4.0)), 0.04);
+  EXPECT_LT(std::abs(depth_moved_by_a_keypoint_error(DepthTerm::kDisparity, 100.0)), 0.005);
+}
+
 TEST(BundleAdjustment, ReducesErrorOfPerturbedPosesAndPoints) {
   std::mt19937 rng(5);
   const PinholeCamera cam = test::make_camera();

@@ -73,6 +73,52 @@ TEST(ReprojectionError, RgbdJacobiansMatchNumeric) {
   check_jacobians<3>(m);
 }
 
+TEST(ReprojectionError, DisparityJacobiansMatchNumeric) {
+  PointMeasurement m;
+  m.uv = {300.0, 200.0};
+  m.u_right = 290.0;
+  m.with_depth = true;
+  m.depth_term = DepthTerm::kDisparity;
+  m.information = 1.0 / 1.44;
+  m.right_information = 4.0 / 1.44;
+  check_jacobians<3>(m);
+}
+
+// The disparity row is the depth alone: a keypoint moved along u changes u's row only, where the
+// virtual right coordinate moves with it.
+TEST(ReprojectionError, DisparityRowIsTheDepthAlone) {
+  const PinholeCamera cam = test::make_camera(520.0, 515.0, 320.0, 240.0);
+  const SE3 T_c_w = test_pose();
+  const Eigen::Vector3d p_c(0.2, 0.1, 2.5);
+  const Eigen::Vector3d p_w = T_c_w.inverse() * p_c;
+  double pose[7];
+  pose_to_block(T_c_w, pose);
+  const double* params[2] = {pose, p_w.data()};
+  PointMeasurement m;
+  m.uv = cam.project(p_c);
+  m.u_right = cam.right_u(m.uv.x(), p_c.z());
+  m.with_depth = true;
+  m.information = 1.0;
+  m.right_information = 4.0;
+  m.depth_term = DepthTerm::kDisparity;
+  // The depth measured 2 % short: disparity bf / z 2 % larger.
+  m.u_right = cam.right_u(m.uv.x(), 0.98 * p_c.z());
+  Eigen::Vector3d r;
+  ASSERT_TRUE(ReprojectionError<3>(cam, m).Evaluate(params, r.data(), nullptr));
+  const double disparity_error = cam.bf / p_c.z() - cam.bf / (0.98 * p_c.z());
+  EXPECT_NEAR(r[2], 2.0 * disparity_error, 1e-9);
+  EXPECT_NEAR(reprojection_chi2(cam, m, p_c), 4.0 * disparity_error * disparity_error, 1e-9);
+  // The keypoint found 1 px to the right, its depth (u - u_right) unchanged.
+  m.uv.x() += 1.0;
+  m.u_right += 1.0;
+  ASSERT_TRUE(ReprojectionError<3>(cam, m).Evaluate(params, r.data(), nullptr));
+  EXPECT_NEAR(r[0], -1.0, 1e-9);
+  EXPECT_NEAR(r[2], 2.0 * disparity_error, 1e-9);
+  m.depth_term = DepthTerm::kRightU;
+  ASSERT_TRUE(ReprojectionError<3>(cam, m).Evaluate(params, r.data(), nullptr));
+  EXPECT_NEAR(r[2], 2.0 * (-1.0 - disparity_error), 1e-9);  // u_r carries u's error
+}
+
 TEST(ReprojectionError, MonoJacobiansMatchNumeric) {
   PointMeasurement m;
   m.uv = {330.0, 250.0};

@@ -43,7 +43,7 @@ TEST(AngularVelocityCorrection, TheKeypointsMoveMatchesNumericDifferences) {
 /// moved to the middle row's time with `omega0` (the prediction), with pixel noise.
 PoseProblem sheared_frame(const PinholeCamera& camera, const SE3& T_c_w, double readout,
                           const Eigen::Vector3d& omega, const Eigen::Vector3d& omega0, int count,
-                          std::mt19937& rng) {
+                          DepthTerm depth_term, std::mt19937& rng) {
   std::uniform_real_distribution<double> u(0.0, camera.width), v(0.0, camera.height);
   std::uniform_real_distribution<double> depth(1.0, 4.0);
   std::normal_distribution<double> noise(0.0, 0.5);
@@ -66,6 +66,7 @@ PoseProblem sheared_frame(const PinholeCamera& camera, const SE3& T_c_w, double 
     obs.p_w = T_w_c * p_m;
     obs.measurement.uv = camera.project(corrected) + Eigen::Vector2d(noise(rng), noise(rng));
     obs.measurement.with_depth = true;
+    obs.measurement.depth_term = depth_term;
     obs.measurement.u_right = camera.right_u(obs.measurement.uv.x(), p_m.z());
     obs.measurement.information = 1.0 / (0.5 * 0.5);
     obs.measurement.right_information = 1.0 / (0.5 * 0.5);
@@ -74,7 +75,7 @@ PoseProblem sheared_frame(const PinholeCamera& camera, const SE3& T_c_w, double 
   return problem;
 }
 
-TEST(AngularVelocityCorrection, TheAngularVelocitysErrorIsFoundFromTheFramesShear) {
+void finds_the_shear(DepthTerm depth_term) {
   // A camera turning at 1.5 rad/s, 30 ms readout, predicted 0.5 rad/s wrong on each axis.
   const PinholeCamera camera = test::make_camera();
   const double readout = 0.03;
@@ -82,7 +83,8 @@ TEST(AngularVelocityCorrection, TheAngularVelocitysErrorIsFoundFromTheFramesShea
   const Eigen::Vector3d error(0.5, -0.5, 0.5);
   const SE3 T_c_w(so3_exp(Eigen::Vector3d(0.1, -0.2, 0.05)), Eigen::Vector3d(0.2, -0.1, 0.3));
   std::mt19937 rng(7);
-  PoseProblem problem = sheared_frame(camera, T_c_w, readout, omega, omega - error, 300, rng);
+  PoseProblem problem =
+      sheared_frame(camera, T_c_w, readout, omega, omega - error, 300, depth_term, rng);
   PoseOptimizerOptions options;
   PoseOptimizationResult result = optimize_pose(camera, T_c_w, problem, options);
   const double before =
@@ -116,7 +118,20 @@ TEST(AngularVelocityCorrection, TheAngularVelocitysErrorIsFoundFromTheFramesShea
   // Significant (the tracker's test: chi-square, 3 dof, 95 %), and less so as it is taken out.
   EXPECT_GT(chi2.front(), 7.815);
   EXPECT_LT(chi2.back(), chi2.front());
-  EXPECT_LT(after, 0.5 * before);
+  // With u_r the shear moves the pose (3.86 mm); the disparity row does not shear, and the pose
+  // from it starts at 0.74 mm. Both end at the keypoints' noise (0.89 and 1.12 mm).
+  if (depth_term == DepthTerm::kRightU) {
+    EXPECT_LT(after, 0.5 * before);
+  }
+  EXPECT_LT(after, 0.0015);
+}
+
+// With either depth row (DepthTerm): u_r moves with the keypoints, the disparity does not.
+TEST(AngularVelocityCorrection, TheAngularVelocitysErrorIsFoundFromTheFramesShear) {
+  for (DepthTerm depth_term : {DepthTerm::kRightU, DepthTerm::kDisparity}) {
+    SCOPED_TRACE(depth_term == DepthTerm::kRightU ? "u_r" : "disparity");
+    finds_the_shear(depth_term);
+  }
 }
 
 }  // namespace

@@ -1,8 +1,9 @@
 #pragma once
 // Residual (6) of the paper for RGB-D keypoints: the reprojection error of a world point in the
-// image, extended (as in ORB-SLAM2) by the virtual right-camera coordinate u_r = u - bf / z when
-// the keypoint has a depth. Residuals are whitened by 1 / sigma of the keypoint's pyramid level.
-// Analytic Jacobians with respect to the pose block (7, see se3_manifold.hpp) and the point.
+// image, extended by a third row for the keypoint's depth (DepthTerm): the virtual right-camera
+// coordinate u_r = u - bf / z (ORB-SLAM2's form) or the disparity bf / z alone. Residuals are
+// whitened by 1 / sigma of the keypoint's pyramid level. Analytic Jacobians with respect to the
+// pose block (7, see se3_manifold.hpp) and the point.
 
 #include <ceres/sized_cost_function.h>
 
@@ -15,16 +16,34 @@ namespace mcslam::optim {
 /// the optimisers leave such observations out) and its chi-square is infinite.
 inline constexpr double kMinPointDepth = 1e-6;
 
+/// How a keypoint's depth enters the third row of its residual.
+enum class DepthTerm {
+  /// The virtual right-camera coordinate u_r = u - bf / z, as a stereo camera's second image
+  /// would give it (ORB-SLAM2's RGB-D form). For an RGB-D camera u_r is computed from u, so its
+  /// error is u's error plus the depth's: a solve that moves a point along its ray can shift u
+  /// and u_r together, and the depth holds the point no better than u does, whatever its weight.
+  kRightU,
+  /// The disparity bf / z alone (pixels): what the depth camera measured, independent of where
+  /// the colour keypoint lies. Bundle adjustment uses it (docs/design.md, "Depth in bundle
+  /// adjustment").
+  kDisparity,
+};
+
 /// What one keypoint says about a world point.
 struct PointMeasurement {
   Eigen::Vector2d uv = Eigen::Vector2d::Zero();
-  double u_right = 0.0;      // virtual right-camera u; used only when with_depth
-  bool with_depth = false;   // false: a 2D (u, v) residual
+  /// Virtual right-camera u, u - bf / z of the measured depth z; used only when with_depth.
+  double u_right = 0.0;
+  bool with_depth = false;  // false: a 2D (u, v) residual
+  DepthTerm depth_term = DepthTerm::kRightU;
   double information = 1.0;  // 1 / sigma^2 of the keypoint's level, for u and v
-  /// 1 / sigma^2 of u_right. Depth noise and the time offset between the colour and depth
-  /// images make it less reliable than u and v; callers scale it by a depth weight.
+  /// 1 / sigma^2 of the depth row (u_right or the disparity, pixels). Callers scale the level's
+  /// information by a depth weight: the depth at a keypoint carries the sensor's noise, its
+  /// registration to the colour image and the time between the two images.
   double right_information = 1.0;
   bool has_depth() const { return with_depth; }
+  /// The measured disparity bf / z (pixels).
+  double disparity() const { return uv.x() - u_right; }
 };
 
 /// p_c = R(q) p_w + t, written for unit quaternions so that its ambient derivative is exact.
@@ -43,6 +62,8 @@ class ReprojectionError final : public ceres::SizedCostFunction<kDim, 7, 3> {
 
  private:
   double fx_, fy_, cx_, cy_, bf_;
+  bool disparity_;
+  /// u, v and, with depth, u_right or the disparity (depth_term).
   Eigen::Matrix<double, kDim, 1> observed_;
   double sqrt_information_;
   double sqrt_right_information_;
