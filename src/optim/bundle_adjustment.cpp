@@ -9,10 +9,10 @@
 namespace mcslam::optim {
 
 std::optional<std::string> BundleAdjustmentOptions::check() const {
-  if (robust_iterations < 1) return "local_ba.robust_iterations must be at least 1";
-  if (refine_iterations < 0) return "local_ba.refine_iterations must not be negative";
+  if (robust_iterations < 1) return "mapper.ba.robust_iterations must be at least 1";
+  if (refine_iterations < 0) return "mapper.ba.refine_iterations must not be negative";
   if (!(chi2_rgbd > 0.0) || !(chi2_mono > 0.0) || !(chi2_line > 0.0) || !(chi2_plane > 0.0))
-    return "local_ba chi-square thresholds must be positive";
+    return "mapper.ba chi-square thresholds must be positive";
   return std::nullopt;
 }
 

@@ -184,6 +184,7 @@ std::vector<Field> mcslam_fields(PinholeCamera& c, SystemOptions& o) {
       {"mapper.fuse_radius", &m.fuse_radius},
       {"mapper.fuse_descriptor_distance", &m.fuse_descriptor_distance},
       {"mapper.depth_weight", &m.depth_weight},
+      {"mapper.disparity_residual", &m.disparity_residual},
       {"mapper.ba_keyframes", &m.ba_keyframes},
       {"mapper.min_covisibility_weight", &m.min_covisibility_weight},
       {"mapper.redundant_ratio", &m.redundant_ratio},

@@ -629,7 +629,7 @@ void LocalMapper::bundle_adjust_keyframes(const std::vector<map::KeyFrameId>& lo
                                           const optim::BundleAdjustmentOptions& ba_options,
                                           const std::atomic<bool>* abort) {
   // The mapper is the only writer: building without the lock is safe on this thread.
-  MapAdjustment adjustment = build_adjustment(map_, local, options_.depth_weight, tracker_options_);
+  MapAdjustment adjustment = build_adjustment(map_, local, options_, tracker_options_);
   if (adjustment.empty()) return;
   const auto result = optim::bundle_adjust(camera_, adjustment.problem, ba_options, abort);
   if (result.failed) {

@@ -211,13 +211,13 @@ void guided_search(const LoopQuery& query, const map::Map& map, map::KeyFrameId 
 }  // namespace
 
 LoopCloser::LoopCloser(const PinholeCamera& camera, const LoopOptions& options,
-                       const TrackerOptions& tracker_options, double depth_weight,
+                       const TrackerOptions& tracker_options, const MapperOptions& mapper_options,
                        std::shared_ptr<const place::Vocabulary> vocabulary, const map::Map& map,
                        LocalMapper& mapper)
     : camera_(camera),
       options_(options),
       tracker_options_(tracker_options),
-      depth_weight_(depth_weight),
+      mapper_options_(mapper_options),
       vocabulary_(std::move(vocabulary)),
       map_(map),
       mapper_(mapper) {}
@@ -449,8 +449,8 @@ std::optional<LoopClosure> LoopCloser::verify(map::KeyFrameId id, map::KeyFrameI
     for (std::size_t k = 0; k < c.p_w.size(); ++k)
       if (inlier[k]) pairs.emplace_back(c.feature_of[k], c.point_of[k]);
     // Without a usable solution the RANSAC pose stands; the inlier count below judges it.
-    if (const auto refined =
-            optimise_on(query, map_, pairs, best_T, depth_weight_, tracker_options_.pose);
+    if (const auto refined = optimise_on(query, map_, pairs, best_T, tracker_options_.depth_weight,
+                                         tracker_options_.pose);
         !refined.failed)
       best_T = refined.T_c_w;
     count_inliers(query, c, best_T, &inlier);
@@ -463,8 +463,8 @@ std::optional<LoopClosure> LoopCloser::verify(map::KeyFrameId id, map::KeyFrameI
     if (inlier[k]) loop.matches.emplace_back(c.feature_of[k], c.point_of[k]);
   guided_search(query, map_, candidate, loop);
   // The final pose from every match; outliers leave.
-  const optim::PoseOptimizationResult refined =
-      optimise_on(query, map_, loop.matches, best_T, depth_weight_, tracker_options_.pose);
+  const optim::PoseOptimizationResult refined = optimise_on(
+      query, map_, loop.matches, best_T, tracker_options_.depth_weight, tracker_options_.pose);
   loop.T_c_w = refined.T_c_w;
   std::vector<std::pair<int, map::PointId>> kept;
   for (std::size_t k = 0; k < loop.matches.size(); ++k)
@@ -492,7 +492,7 @@ void LoopCloser::full_bundle_adjustment() {
     for (const auto& kv : map_.keyframes()) all.push_back(kv.first);
     std::sort(all.begin(), all.end());
     if (all.size() < 2) return;
-    adjustment = build_adjustment(map_, all, depth_weight_, tracker_options_);
+    adjustment = build_adjustment(map_, all, mapper_options_, tracker_options_);
   }
   if (adjustment.empty()) return;
   const std::vector<SE3> before = adjustment.problem.poses;

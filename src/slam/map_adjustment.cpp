@@ -38,7 +38,7 @@ class AdjustmentBuilder {
   }
 
   /// The points the local keyframes see, with every observation.
-  void add_points(double depth_weight) {
+  void add_points(double depth_weight, optim::DepthTerm depth_term) {
     auto& problem = a_.problem;
     auto& point_ids = a_.point_ids;
     std::unordered_set<map::PointId> seen;
@@ -61,7 +61,7 @@ class AdjustmentBuilder {
         obs.pose = add_observer(kf_id);
         obs.point = static_cast<int>(k);
         obs.measurement = measurement_of(kf->features->points[static_cast<std::size_t>(index)],
-                                         *kf->features->pyramid, depth_weight);
+                                         *kf->features->pyramid, depth_weight, depth_term);
         problem.observations.push_back(obs);
         a_.observation_ids.emplace_back(kf_id, point_ids[k]);
       }
@@ -147,10 +147,11 @@ class AdjustmentBuilder {
 }  // namespace
 
 MapAdjustment build_adjustment(const map::Map& map, const std::vector<map::KeyFrameId>& local,
-                               double depth_weight, const TrackerOptions& tracker) {
+                               const MapperOptions& mapper, const TrackerOptions& tracker) {
   MapAdjustment a;
   AdjustmentBuilder builder(map, local, a);
-  builder.add_points(depth_weight);
+  builder.add_points(mapper.depth_weight, mapper.disparity_residual ? optim::DepthTerm::kDisparity
+                                                                    : optim::DepthTerm::kRightU);
   builder.add_lines(tracker);
   builder.add_planes(tracker);
   a.lines_before = a.problem.lines;

@@ -34,10 +34,11 @@ struct MapAdjustment {
 };
 
 /// The keyframes `local` (optimised), every landmark they see, and the other keyframes that see
-/// those (fixed); the map's first keyframe is always fixed. Call under the map's read lock (or
-/// from its writer).
+/// those (fixed); the map's first keyframe is always fixed. The points' depth residual and its
+/// weight come from `mapper`, the lines' and planes' sigmas from `tracker`. Call under the map's
+/// read lock (or from its writer).
 MapAdjustment build_adjustment(const map::Map& map, const std::vector<map::KeyFrameId>& local,
-                               double depth_weight, const TrackerOptions& tracker);
+                               const MapperOptions& mapper, const TrackerOptions& tracker);
 
 /// Writes an adjustment's result back: outlier observations erased, poses and landmarks set,
 /// covisibility updated. Call under the map's write lock.

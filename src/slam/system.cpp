@@ -41,9 +41,8 @@ System::System(const PinholeCamera& camera, const SystemOptions& options,
   if (vocabulary_) mapper_->set_vocabulary(vocabulary_, options_.place.direct_levels_up);
   if (from_map) tracker_->start_in_map(map_->counters().next_keyframe, options_.localize);
   if (vocabulary_ && options_.place.loop.enabled) {
-    loop_closer_ =
-        std::make_unique<LoopCloser>(camera_, options_.place.loop, options_.tracker,
-                                     options_.mapper.depth_weight, vocabulary_, *map_, *mapper_);
+    loop_closer_ = std::make_unique<LoopCloser>(camera_, options_.place.loop, options_.tracker,
+                                                options_.mapper, vocabulary_, *map_, *mapper_);
     LoopCloser* closer = loop_closer_.get();
     if (options_.sequential) {
       mapper_->set_keyframe_listener([closer](map::KeyFrameId id) { closer->process(id); });

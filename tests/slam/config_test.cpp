@@ -127,6 +127,8 @@ TEST(Config, UnknownKeysAndBadValuesAreErrorsNamingTheFile) {
            {"tracker: {refine_min_angular_velocity: -1}\n", "tracker.refine_min_angular_velocity"},
            {"tracker: {refine_rolling_shutter: often}\n", "tracker.refine_rolling_shutter"},
            {"tracker: {keyframe_interval: -0.5}\n", "tracker.keyframe_interval"},
+           {"mapper: {ba: {robust_iterations: 0}}\n", "mapper.ba.robust_iterations"},
+           {"mapper: {disparity_residual: sometimes}\n", "mapper.disparity_residual"},
            {"system: {extract_ahead: maybe}\n", "system.extract_ahead"}}) {
     SystemOptions fresh;
     io::ConfigFile bad = io::ConfigFile::from_string(text, "tracker.yaml");
@@ -224,6 +226,7 @@ TEST(Config, EffectiveConfigLoadsBackUnchanged) {
   config.options.orb.num_features = 1234;
   config.options.tracker.depth_weight = 0.25;
   config.options.mapper.ba_keyframes = 17;
+  config.options.mapper.disparity_residual = true;
   config.options.sequential = true;
   config.options.tracker.dynamics.frame_gap = 3;
   config.options.tracker.dynamics.constrained_classes = {"chair", "dining table"};
@@ -236,6 +239,7 @@ TEST(Config, EffectiveConfigLoadsBackUnchanged) {
   EXPECT_EQ(options.orb.num_features, 1234);
   EXPECT_DOUBLE_EQ(options.tracker.depth_weight, 0.25);
   EXPECT_EQ(options.mapper.ba_keyframes, 17);
+  EXPECT_TRUE(options.mapper.disparity_residual);
   EXPECT_TRUE(options.sequential);
   EXPECT_EQ(options.tracker.dynamics.frame_gap, 3);
   EXPECT_EQ(options.tracker.dynamics.constrained_classes,

@@ -28,9 +28,8 @@ struct Pipeline {
                options.tracker.close_depth_factor * seq.camera.bf / seq.camera.fx, map) {
     if (vocabulary) {
       mapper.set_vocabulary(vocabulary, options.place.direct_levels_up);
-      loops =
-          std::make_unique<slam::LoopCloser>(seq.camera, options.place.loop, options.tracker,
-                                             options.mapper.depth_weight, vocabulary, map, mapper);
+      loops = std::make_unique<slam::LoopCloser>(seq.camera, options.place.loop, options.tracker,
+                                                 options.mapper, vocabulary, map, mapper);
     }
   }
 

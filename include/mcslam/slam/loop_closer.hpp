@@ -90,7 +90,7 @@ struct LoopStatistics {
 class LoopCloser {
  public:
   LoopCloser(const PinholeCamera& camera, const LoopOptions& options,
-             const TrackerOptions& tracker_options, double depth_weight,
+             const TrackerOptions& tracker_options, const MapperOptions& mapper_options,
              std::shared_ptr<const place::Vocabulary> vocabulary, const map::Map& map,
              LocalMapper& mapper);
   ~LoopCloser();
@@ -128,7 +128,7 @@ class LoopCloser {
   PinholeCamera camera_;
   LoopOptions options_;
   TrackerOptions tracker_options_;
-  double depth_weight_;
+  MapperOptions mapper_options_;  // the full bundle adjustment's depth residual
   std::shared_ptr<const place::Vocabulary> vocabulary_;
   const map::Map& map_;
   LocalMapper& mapper_;

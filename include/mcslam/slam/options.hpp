@@ -43,8 +43,9 @@ struct TrackerOptions {
   double local_map_ratio = 0.8;
   /// Local-map search window factor (times 2.5-4 px, times the level's scale). RGB-D: 3.
   double local_map_search_radius = 3.0;
-  /// Weight of the depth (virtual right coordinate) residual relative to u, v in pose
-  /// optimisation; 0 uses u, v only.
+  /// Weight of the depth residual (the virtual right coordinate u - bf / z, optim::DepthTerm)
+  /// relative to u, v in pose optimisation (the tracker's and the loop closer's); 0 uses u, v
+  /// only.
   double depth_weight = 1.0;
   /// Move each keypoint's depth from the depth image's capture time to the colour image's with
   /// the tracked velocity (Kinect v1 streams are ~15 ms apart: ~1 degree at 60 deg/s).
@@ -191,8 +192,16 @@ struct MapperOptions {
   double fuse_radius = 3.0;
   /// Hamming threshold for fusing a landmark into a keyframe feature.
   int fuse_descriptor_distance = 50;
-  /// Weight of the depth residual in local bundle adjustment (see TrackerOptions).
+  /// Weight of the depth residual in bundle adjustment (local, after a loop and at the end),
+  /// relative to u, v at the keypoint's level.
   double depth_weight = 1.0;
+  /// Bundle adjustment's depth residual is the disparity bf / z alone instead of the virtual
+  /// right coordinate u - bf / z (optim::DepthTerm). With u - bf / z a point's depth follows its
+  /// keypoints' u however heavily the depth is weighted; the disparity holds it where the depth
+  /// images put it. Off by default: with real depth it made the online pose no better (Bonn crowd
+  /// part 1 from frame 240 worse), with the renders' depth noise alone it improves both
+  /// trajectories (docs/design.md, "Depth in bundle adjustment").
+  bool disparity_residual = false;
   /// Local BA: covisible keyframes optimised together with the new one.
   int ba_keyframes = 20;
   int min_covisibility_weight = 15;
