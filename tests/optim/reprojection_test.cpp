@@ -18,6 +18,31 @@ SE3 test_pose() {
   return SE3::exp(xi);
 }
 
+/// A point at p_c in the frame of a camera at test_pose(), and its exact measurement with depth.
+struct SeenPoint {
+  PinholeCamera cam = test::make_camera(520.0, 515.0, 320.0, 240.0);
+  Eigen::Vector3d p_c = Eigen::Vector3d::Zero();
+  Eigen::Vector3d p_w = Eigen::Vector3d::Zero();
+  double pose[7] = {};
+  PointMeasurement m;
+  const double* params[2] = {nullptr, nullptr};  // pose and p_w: it points into itself
+  SeenPoint() = default;
+  SeenPoint(const SeenPoint&) = delete;
+  SeenPoint& operator=(const SeenPoint&) = delete;
+};
+
+void see(const Eigen::Vector3d& p_c, double information, SeenPoint& s) {
+  s.p_c = p_c;
+  s.p_w = test_pose().inverse() * p_c;
+  pose_to_block(test_pose(), s.pose);
+  s.m.uv = s.cam.project(p_c);
+  s.m.u_right = s.cam.right_u(s.m.uv.x(), p_c.z());
+  s.m.with_depth = true;
+  s.m.information = information;
+  s.params[0] = s.pose;
+  s.params[1] = s.p_w.data();
+}
+
 template <int kDim>
 void check_jacobians(const PointMeasurement& m) {
   const PinholeCamera cam = test::make_camera(520.0, 515.0, 320.0, 240.0);
@@ -87,35 +112,27 @@ TEST(ReprojectionError, DisparityJacobiansMatchNumeric) {
 // The disparity row is the depth alone: a keypoint moved along u changes u's row only, where the
 // virtual right coordinate moves with it.
 TEST(ReprojectionError, DisparityRowIsTheDepthAlone) {
-  const PinholeCamera cam = test::make_camera(520.0, 515.0, 320.0, 240.0);
-  const SE3 T_c_w = test_pose();
-  const Eigen::Vector3d p_c(0.2, 0.1, 2.5);
-  const Eigen::Vector3d p_w = T_c_w.inverse() * p_c;
-  double pose[7];
-  pose_to_block(T_c_w, pose);
-  const double* params[2] = {pose, p_w.data()};
-  PointMeasurement m;
-  m.uv = cam.project(p_c);
-  m.u_right = cam.right_u(m.uv.x(), p_c.z());
-  m.with_depth = true;
-  m.information = 1.0;
+  SeenPoint s;
+  see(Eigen::Vector3d(0.2, 0.1, 2.5), 1.0, s);
+  const PinholeCamera& cam = s.cam;
+  PointMeasurement& m = s.m;
   m.right_information = 4.0;
   m.depth_term = DepthTerm::kDisparity;
   // The depth measured 2 % short: disparity bf / z 2 % larger.
-  m.u_right = cam.right_u(m.uv.x(), 0.98 * p_c.z());
+  m.u_right = cam.right_u(m.uv.x(), 0.98 * s.p_c.z());
   Eigen::Vector3d r;
-  ASSERT_TRUE(ReprojectionError<3>(cam, m).Evaluate(params, r.data(), nullptr));
-  const double disparity_error = cam.bf / p_c.z() - cam.bf / (0.98 * p_c.z());
+  ASSERT_TRUE(ReprojectionError<3>(cam, m).Evaluate(s.params, r.data(), nullptr));
+  const double disparity_error = cam.bf / s.p_c.z() - cam.bf / (0.98 * s.p_c.z());
   EXPECT_NEAR(r[2], 2.0 * disparity_error, 1e-9);
-  EXPECT_NEAR(reprojection_chi2(cam, m, p_c), 4.0 * disparity_error * disparity_error, 1e-9);
+  EXPECT_NEAR(reprojection_chi2(cam, m, s.p_c), 4.0 * disparity_error * disparity_error, 1e-9);
   // The keypoint found 1 px to the right, its depth (u - u_right) unchanged.
   m.uv.x() += 1.0;
   m.u_right += 1.0;
-  ASSERT_TRUE(ReprojectionError<3>(cam, m).Evaluate(params, r.data(), nullptr));
+  ASSERT_TRUE(ReprojectionError<3>(cam, m).Evaluate(s.params, r.data(), nullptr));
   EXPECT_NEAR(r[0], -1.0, 1e-9);
   EXPECT_NEAR(r[2], 2.0 * disparity_error, 1e-9);
   m.depth_term = DepthTerm::kRightU;
-  ASSERT_TRUE(ReprojectionError<3>(cam, m).Evaluate(params, r.data(), nullptr));
+  ASSERT_TRUE(ReprojectionError<3>(cam, m).Evaluate(s.params, r.data(), nullptr));
   EXPECT_NEAR(r[2], 2.0 * (-1.0 - disparity_error), 1e-9);  // u_r carries u's error
 }
 
@@ -126,29 +143,19 @@ TEST(ReprojectionError, MonoJacobiansMatchNumeric) {
 }
 
 TEST(ReprojectionError, ZeroAtTruthAndWhitened) {
-  const PinholeCamera cam = test::make_camera(520.0, 515.0, 320.0, 240.0);
-  const SE3 T_c_w = test_pose();
-  const Eigen::Vector3d p_c(0.2, 0.1, 1.5);
-  const Eigen::Vector3d p_w = T_c_w.inverse() * p_c;
-  PointMeasurement m;
-  m.uv = cam.project(p_c);
-  m.u_right = cam.right_u(m.uv.x(), p_c.z());
-  m.with_depth = true;
-  m.information = 0.25;
-  double pose[7];
-  pose_to_block(T_c_w, pose);
-  ReprojectionError<3> cost(cam, m);
-  const double* params[2] = {pose, p_w.data()};
+  SeenPoint s;
+  see(Eigen::Vector3d(0.2, 0.1, 1.5), 0.25, s);
+  ReprojectionError<3> cost(s.cam, s.m);
   Eigen::Vector3d r;
-  ASSERT_TRUE(cost.Evaluate(params, r.data(), nullptr));
+  ASSERT_TRUE(cost.Evaluate(s.params, r.data(), nullptr));
   EXPECT_LT(r.norm(), 1e-9);
-  EXPECT_NEAR(reprojection_chi2(cam, m, p_c), 0.0, 1e-12);
+  EXPECT_NEAR(reprojection_chi2(s.cam, s.m, s.p_c), 0.0, 1e-12);
   // One pixel of error at information 0.25 gives a whitened residual of 0.5.
-  m.uv.x() += 1.0;
-  ReprojectionError<3> shifted(cam, m);
-  ASSERT_TRUE(shifted.Evaluate(params, r.data(), nullptr));
+  s.m.uv.x() += 1.0;
+  ReprojectionError<3> shifted(s.cam, s.m);
+  ASSERT_TRUE(shifted.Evaluate(s.params, r.data(), nullptr));
   EXPECT_NEAR(r[0], -0.5, 1e-9);
-  EXPECT_NEAR(reprojection_chi2(cam, m, p_c), 0.25, 1e-9);
+  EXPECT_NEAR(reprojection_chi2(s.cam, s.m, s.p_c), 0.25, 1e-9);
 }
 
 TEST(ReprojectionError, BehindCameraIsRejected) {
