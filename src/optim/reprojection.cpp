@@ -106,15 +106,19 @@ bool PoseOnlyReprojectionError<kDim>::Evaluate(double const* const* parameters, 
   return full_.Evaluate(params, residuals, jacobians ? jac : nullptr);
 }
 
+double depth_row_error(const PinholeCamera& camera, const PointMeasurement& m,
+                       const Eigen::Vector3d& p_c) {
+  if (m.depth_term == DepthTerm::kDisparity) return camera.bf / p_c.z() - m.disparity();
+  return camera.right_u(camera.project(p_c).x(), p_c.z()) - m.u_right;
+}
+
 double reprojection_chi2(const PinholeCamera& camera, const PointMeasurement& m,
                          const Eigen::Vector3d& p_c) {
   if (p_c.z() <= kMinPointDepth) return std::numeric_limits<double>::infinity();
   const Eigen::Vector2d uv = camera.project(p_c);
   double chi2 = (uv - m.uv).squaredNorm() * m.information;
   if (m.has_depth()) {
-    const double e = m.depth_term == DepthTerm::kDisparity
-                         ? camera.bf / p_c.z() - m.disparity()
-                         : camera.right_u(uv.x(), p_c.z()) - m.u_right;
+    const double e = depth_row_error(camera, m, p_c);
     chi2 += e * e * m.right_information;
   }
   return chi2;

@@ -61,14 +61,13 @@ AngularVelocityCorrection estimate_angular_velocity_correction(
       const double bf_z2 = camera.bf / (p_c.z() * p_c.z());
       if (m.depth_term == DepthTerm::kDisparity) {
         J.block<1, 6>(2, 0) = Eigen::RowVector3d(0.0, 0.0, -bf_z2) * dp;
-        e.z() = camera.bf / p_c.z() - m.disparity();
       } else {
         Eigen::RowVector3d d_ur = J_pi.row(0);
         d_ur.z() += bf_z2;
         J.block<1, 6>(2, 0) = d_ur * dp;
         J.block<1, 3>(2, 6) = -J_d.row(0);
-        e.z() = camera.right_u(camera.project(p_c).x(), p_c.z()) - m.u_right;
       }
+      e.z() = depth_row_error(camera, m, p_c);
       w.z() = m.right_information;
     }
     H.noalias() += J.transpose() * w.asDiagonal() * J;

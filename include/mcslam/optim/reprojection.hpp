@@ -83,6 +83,11 @@ class PoseOnlyReprojectionError final : public ceres::SizedCostFunction<kDim, 7>
   Eigen::Vector3d p_w_;
 };
 
+/// The depth row's unwhitened error (prediction minus measurement, pixels) for a camera point in
+/// front of the camera: u_r or the disparity, as m.depth_term says.
+double depth_row_error(const PinholeCamera& camera, const PointMeasurement& m,
+                       const Eigen::Vector3d& p_c);
+
 /// The unwhitened squared error of a measurement for a camera point (for chi-square tests).
 double reprojection_chi2(const PinholeCamera& camera, const PointMeasurement& m,
                          const Eigen::Vector3d& p_c);
