@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # The live viewer in a real browser: `mcslam run --viewer` on a rendered dynamic room (played at
 # its frame rate, --realtime, so that the run lasts while the page is checked), then headless
-# Chromium opens the page (web/viewer/check-viewer.mjs): frames arrive, the map grows, the
-# trajectory is drawn, the occupancy map's grid and voxels and the people's boxes are drawn and
+# Chromium opens the page (web/viewer/check-viewer.mjs): frames arrive, the map grows, "Fit view"
+# frames it and the trajectory is drawn, the occupancy map's grid and voxels and the people's boxes are drawn and
 # their switches hide and show them, pause and resume, localisation only and back, no console
 # errors. The run (60 s of frames, longer than the check takes) is then stopped with SIGINT and
 # must write its outputs, its summary.json recording the pause, the two switches and the

@@ -44,7 +44,9 @@ try {
 const passed = [];
 const failed = [];
 const started = Date.now();
-function check(ok, message) {
+// detail: printed only when the check fails (what a failure needs to be understood).
+function check(ok, message, detail) {
+  if (!ok && detail) message += `; ${detail}`;
   (ok ? passed : failed).push(message);
   console.log(`${ok ? 'ok  ' : 'FAIL'}  ${message}  [${((Date.now() - started) / 1000).toFixed(1)} s]`);
 }
@@ -65,6 +67,14 @@ function drawnPixels(page) {
     }
     return n;
   });
+}
+
+// Clicks "Fit view" (the whole map framed, as the first snapshot framed it) and waits for the view
+// to be drawn: the pixel checks then do not depend on where the first snapshot put the view or
+// on where following the camera has taken it.
+async function fitView(page) {
+  await page.click('button[data-control=fit]');
+  await page.evaluate(() => new Promise((resolve) => requestAnimationFrame(() => requestAnimationFrame(resolve))));
 }
 
 // Sets a layer switch (a click, as a user would) and waits for the view to be drawn again.
@@ -104,6 +114,7 @@ async function checkLayers(page, viewer) {
   await page.click('button[data-control=pause]');
   await page.waitForFunction(() => window.mcslamViewer.lastStats && window.mcslamViewer.lastStats.held, null, { timeout: 30_000 }).catch(() => {});
   await sleep(1500);
+  await fitView(page);
   await setLayer(page, 'grid', true);
   const withLayers = await drawnPixels(page);
   for (const name of ['grid', 'voxels', 'people']) await setLayer(page, name, false);
@@ -111,13 +122,14 @@ async function checkLayers(page, viewer) {
   v = await viewer();
   const hidden = ['grid', 'voxels', 'people'].every((n) => !v.layers[n].visible && !v.layers[n].drawn);
   check(hidden, `switched off, no layer is drawn (${JSON.stringify(v.layers)})`);
-  check(withLayers - without > 1000, `the view loses the grid's and voxels' pixels (${withLayers} -> ${without}; a frame took ${Number(v.renderMs).toFixed(1)} ms to draw)`);
+  check(withLayers - without > 1000, `the view loses the grid's and voxels' pixels (${withLayers} -> ${without}; a frame took ${Number(v.renderMs).toFixed(1)} ms to draw)`,
+    `view ${JSON.stringify(v.view)}`);
   for (const name of ['grid', 'voxels', 'people']) await setLayer(page, name, true);
   const again = await drawnPixels(page);
   v = await viewer();
   check(v.layers.grid.drawn && v.layers.voxels.drawn && v.layers.people.visible
     && v.layers.people.drawn === (v.layers.people.count > 0), `switched on, they are drawn again (${JSON.stringify(v.layers)})`);
-  check(again - without > 1000, `the view shows them again (${without} -> ${again})`);
+  check(again - without > 1000, `the view shows them again (${without} -> ${again})`, `view ${JSON.stringify(v.view)}`);
   await page.click('button[data-control=pause]');
   // A new occupancy snapshot keeps a hidden layer hidden.
   for (const name of ['grid', 'voxels']) await setLayer(page, name, false);
@@ -165,6 +177,7 @@ try {
   v = await viewer();
   check(v.mapPoints > firstPoints && firstPoints > 0, `the map's point count grows (${firstPoints} -> ${v.mapPoints})`);
   check(v.trajectoryPoints >= 2, `the trajectory has points (${v.trajectoryPoints})`);
+  await fitView(page);
   const mapPixels = await page.evaluate(() => {
     const canvas = document.querySelector('canvas[data-view=map3d]');
     const gl = canvas.getContext('webgl2') || canvas.getContext('webgl');
@@ -180,8 +193,10 @@ try {
     }
     return { orange, other };
   });
-  check(mapPixels && mapPixels.orange > 20, `the trajectory is drawn in the 3D view (${mapPixels && mapPixels.orange} pixels)`);
-  check(mapPixels && mapPixels.other > 500, `the 3D view is not blank (${mapPixels && mapPixels.other} pixels)`);
+  v = await viewer();
+  check(mapPixels && mapPixels.orange > 20, `the trajectory is drawn in the 3D view (${mapPixels && mapPixels.orange} pixels)`,
+    `view ${JSON.stringify(v.view)}, pose ${JSON.stringify(v.lastStats && v.lastStats.pose)}`);
+  check(mapPixels && mapPixels.other > 500, `the 3D view is not blank (${mapPixels && mapPixels.other} pixels)`, `view ${JSON.stringify(v.view)}`);
   fs.mkdirSync(screenshotDir, { recursive: true });
   await checkLayers(page, viewer);
   await page.screenshot({ path: path.join(screenshotDir, 'viewer-live.png') });

@@ -59,7 +59,9 @@ export class LiveMap {
     this.controls = new OrbitControls(this.camera, canvas);
     this.controls.addEventListener('change', () => this.requestRender());
     this.parts = [];
+    this.namedParts = null;  // the newest snapshot's parts by name (points, lines, ...)
     this.fitted = false;
+    this.fittedTo = null;  // the bounds of the newest fit ({center, radius})
     this.follow = true;
     this.lastCameraPosition = null;
 
@@ -102,20 +104,27 @@ export class LiveMap {
       planes: planes(snapshot),
       keyframes: keyframePath(snapshot),
     };
+    this.namedParts = parts;
     this.parts = Object.values(parts).filter(Boolean);
     for (const part of this.parts) this.scene.add(part.object);
     this.trajectory.geometry.dispose();
     const geometry = new BufferGeometry();
     geometry.setAttribute('position', new Float32BufferAttribute(snapshot.trajectory, 3));
     this.trajectory.geometry = geometry;
-    if (!this.fitted) {
-      const bounds = sceneBounds(parts);
-      if (bounds) {
-        this.fit(bounds);
-        this.fitted = true;
-      }
-    }
+    if (!this.fitted) this.fitToMap();
     this.requestRender();
+  }
+
+  // Frames the whole map as it is now (the first snapshot does it; the "Fit view" button again,
+  // after the user has moved the view away or the map has grown beyond it).
+  fitToMap() {
+    const bounds = this.namedParts ? sceneBounds(this.namedParts) : null;
+    if (!bounds) return false;
+    this.fit(bounds);
+    this.fitted = true;
+    this.fittedTo = { center: bounds.center.toArray(), radius: bounds.radius };
+    this.requestRender();
+    return true;
   }
 
   // Replaces a layer's object (null: nothing to draw); its visibility stays as switched.
@@ -163,6 +172,17 @@ export class LiveMap {
       out[name] = { visible, drawn: Boolean(object && object.visible && object.parent === this.scene), count };
     }
     return out;
+  }
+
+  // Where the view looks from and at, and what it was fitted to (for the page's state).
+  viewState() {
+    const round = (a) => a.map((x) => Number(x.toFixed(3)));
+    return {
+      from: round(this.camera.position.toArray()),
+      at: round(this.controls.target.toArray()),
+      fittedTo: this.fittedTo && { center: round(this.fittedTo.center), radius: Number(this.fittedTo.radius.toFixed(3)) },
+      canvas: [this.canvas.width, this.canvas.height],
+    };
   }
 
   // pose: the camera's T_w_c as 16 numbers, column-major (or null when not tracked).

@@ -28,6 +28,7 @@ const state = {
   objectBoxesSeen: 0,    // the most at once so far
   layers: null,          // what each layer of the 3D map draws (LiveMap.layerState)
   renderMs: null,        // the 3D map's last frame, on the page's thread
+  view: null,            // where the 3D map's view looks from and at (LiveMap.viewState)
   connected: false,
 };
 // Read by the browser test (web/viewer/check-viewer.mjs, run by tests/app/viewer_browser.sh).
@@ -41,13 +42,14 @@ const status = h('span', { class: 'status', dataset: { connected: 'false' } }, '
 const pauseButton = h('button', { type: 'button', class: 'button', dataset: { control: 'pause' }, 'aria-pressed': 'false' }, 'Pause');
 const localizeButton = h('button', { type: 'button', class: 'button', dataset: { control: 'localize' }, 'aria-pressed': 'false' }, 'Localisation only');
 const followBox = h('input', { type: 'checkbox', checked: true, dataset: { control: 'follow' } });
+const fitButton = h('button', { type: 'button', class: 'button', dataset: { control: 'fit' }, title: 'Frame the whole map' }, 'Fit view');
 // The 3D map's layers, each a switch kept as set while the run goes on.
 const LAYER_LABELS = { grid: 'Grid', voxels: 'Voxels', people: 'People' };
 const layerBoxes = {};
 for (const name of LAYERS) layerBoxes[name] = h('input', { type: 'checkbox', checked: true, dataset: { control: `layer-${name}` } });
 const header = h('header', {},
   h('h1', {}, 'mcslam live'), status, pauseButton, localizeButton,
-  h('label', { class: 'control' }, followBox, ' Follow camera'),
+  fitButton, h('label', { class: 'control' }, followBox, ' Follow camera'),
   LAYERS.map((name) => h('label', { class: 'control' }, layerBoxes[name], ` ${LAYER_LABELS[name]}`)));
 
 let frameImage = h('img', { alt: 'current frame with its overlay', dataset: { view: 'frame' } });
@@ -96,10 +98,15 @@ try {
   mapStage.replaceWith(h('p', { class: 'hint' }, `The 3D map needs WebGL, which is not available here (${err && err.message ? err.message : err}).`));
 }
 followBox.addEventListener('change', () => map && map.setFollow(followBox.checked));
+fitButton.addEventListener('click', () => {
+  if (map) map.fitToMap();
+  refreshLayers();
+});
 function refreshLayers() {
   if (map) {
     state.layers = map.layerState();
     state.renderMs = map.renderMs;
+    state.view = map.viewState();
   }
 }
 for (const name of LAYERS) {
