@@ -246,6 +246,7 @@ std::vector<Field> mcslam_fields(PinholeCamera& c, SystemOptions& o) {
       {"mapping.localize_view_period", &o.occupancy.localize_view_period},
       {"mapping.niceness", &o.occupancy.niceness},
       {"system.sequential", &o.sequential},
+      {"system.wait_for_keyframe_points", &o.wait_for_keyframe_points},
       {"system.extract_ahead", &o.extract_ahead},
       {"system.detection_interval", &o.detection_interval},
       {"system.background_niceness", &o.background_niceness},

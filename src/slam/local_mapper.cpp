@@ -40,6 +40,11 @@ void LocalMapper::process(KeyFrameRequest request, StageTimes* times) {
   create_points(id, color);
   create_lines(id);
   associate_planes(id);
+  {
+    std::lock_guard<std::mutex> guard(queue_mutex_);
+    inserted_ = id;
+  }
+  idle_cv_.notify_all();
   local.add("map_insert", watch.elapsed_ms());
   watch.restart();
   cull_recent_points(id);
@@ -236,6 +241,15 @@ void LocalMapper::wait_idle() {
   std::unique_lock<std::mutex> lock(queue_mutex_);
   if (!thread_.joinable()) return;
   idle_cv_.wait(lock, [this] { return queue_.empty() && tasks_.empty() && !busy_; });
+}
+
+void LocalMapper::wait_inserted(map::KeyFrameId id) {
+  std::unique_lock<std::mutex> lock(queue_mutex_);
+  if (!thread_.joinable()) return;
+  idle_cv_.wait(lock, [this, id] {
+    return (inserted_ && *inserted_ >= id) || failure_.failed() ||
+           (queue_.empty() && !busy_);  // stopped, or the request was dropped
+  });
 }
 
 void LocalMapper::insert_keyframe(const KeyFrameRequest& request) {

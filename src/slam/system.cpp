@@ -301,7 +301,14 @@ void System::hand_over_keyframe(KeyFrameRequest keyframe, const PreparedImages& 
     keyframe.still_regions = object_regions(result.objects, ObjectState::kStatic);
   }
   if (!options_.sequential) {
+    const bool wait = options_.wait_for_keyframe_points && mapper_->idle();
+    const map::KeyFrameId id = keyframe.id;
     mapper_->enqueue(std::move(keyframe));
+    if (wait) {
+      Stopwatch watch;
+      mapper_->wait_inserted(id);
+      result.times.add("keyframe_wait", watch.elapsed_ms());
+    }
     return;
   }
   StageTimes mapper_times;

@@ -129,7 +129,8 @@ TEST(Config, UnknownKeysAndBadValuesAreErrorsNamingTheFile) {
            {"tracker: {keyframe_interval: -0.5}\n", "tracker.keyframe_interval"},
            {"mapper: {ba: {robust_iterations: 0}}\n", "mapper.ba.robust_iterations"},
            {"mapper: {disparity_residual: sometimes}\n", "mapper.disparity_residual"},
-           {"system: {extract_ahead: maybe}\n", "system.extract_ahead"}}) {
+           {"system: {extract_ahead: maybe}\n", "system.extract_ahead"},
+           {"system: {wait_for_keyframe_points: 2}\n", "system.wait_for_keyframe_points"}}) {
     SystemOptions fresh;
     io::ConfigFile bad = io::ConfigFile::from_string(text, "tracker.yaml");
     const std::string m = message_of([&] { apply_config(bad, good, fresh); });

@@ -203,6 +203,54 @@ TEST(System, ThreadedMappingTracksToo) {
   EXPECT_LT(eval::evaluate(seq.groundtruth, r.trajectory).ate.translation.rmse, 0.01);
 }
 
+// system.wait_for_keyframe_points: a keyframe handed to an idle mapper is in the map, with the
+// points it created, when process() returns (the wait is timed as keyframe_wait); off, no frame
+// waits.
+TEST(System, AKeyframeHandedToAnIdleMapperIsInTheMapWhenTheFrameReturns) {
+  const auto& seq = test::rendered_sequence(60, false);
+#ifdef MCSLAM_TSAN
+  const std::vector<bool> settings = {true};  // the waiting's threads (the other is a plain run)
+#else
+  const std::vector<bool> settings = {true, false};
+#endif
+  for (const bool wait : settings) {
+    SystemOptions options;
+    options.sequential = false;
+    options.wait_for_keyframe_points = wait;
+    System system(seq.camera, options);
+    int waited = 0;
+    for (std::size_t i = 0; i < seq.frames.size(); ++i) {
+      const double t = seq.groundtruth[i].timestamp;
+      const FrameResult r = system.process(seq.frames[i].rgb, seq.frames[i].depth, t);
+      const bool timed = std::any_of(r.times.stages.begin(), r.times.stages.end(),
+                                     [](const auto& s) { return s.first == "keyframe_wait"; });
+      if (!wait) {
+        EXPECT_FALSE(timed) << i;
+        continue;
+      }
+      if (!timed) continue;
+      EXPECT_TRUE(r.keyframe) << i;
+      ++waited;
+      auto lock = system.map().read_lock();
+      const map::KeyFrame* inserted = nullptr;
+      for (const auto& [id, kf] : system.map().keyframes())
+        if (kf.timestamp == t) inserted = &kf;
+      ASSERT_NE(inserted, nullptr) << "frame " << i;
+      EXPECT_GT(std::count_if(inserted->landmarks.begin(), inserted->landmarks.end(),
+                              [&](map::PointId p) {
+                                const map::MapPoint* mp = system.map().point(p);
+                                return mp != nullptr && mp->observations.count(inserted->id) != 0;
+                              }),
+                50)
+          << "frame " << i;
+    }
+    system.finish();
+    if (wait) {
+      EXPECT_GE(waited, 2);
+    }
+  }
+}
+
 // tracker.keyframe_interval: a keyframe once that long has passed since the last one, while
 // tracking, whatever share of the reference keyframe's landmarks the frame still sees. The room
 // at half the usual speed leaves ORB-SLAM2's rule alone longer gaps; with 0.5 s none is longer

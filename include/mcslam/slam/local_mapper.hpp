@@ -10,6 +10,7 @@
 #include <functional>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <thread>
 #include <vector>
 
@@ -86,6 +87,10 @@ class LocalMapper {
   /// Waits until the queue is empty and nothing is running (threaded mode; returns at once
   /// otherwise).
   void wait_idle();
+  /// Waits until the keyframe of this request id is in the map with its new points, lines and
+  /// plane associations (its fusion and bundle adjustment may still be running). Returns at once
+  /// without a thread, and when the thread has failed (a keyframe it will never insert).
+  void wait_inserted(map::KeyFrameId id);
   std::size_t queue_size() const;
 
   /// Bundle adjustment of the whole map (all keyframes and points, the first keyframe fixed).
@@ -159,6 +164,9 @@ class LocalMapper {
   bool stop_ = false;
   bool busy_ = false;
   std::atomic<bool> abort_ba_{false};
+  /// The newest keyframe inserted (process: after its points, lines and planes), under
+  /// queue_mutex_; idle_cv_ tells wait_inserted.
+  std::optional<map::KeyFrameId> inserted_;
   std::atomic<int> ba_failures_{0};
   std::thread thread_;
 

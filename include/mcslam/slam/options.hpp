@@ -292,6 +292,14 @@ struct SystemOptions {
   bool localize = false;
   /// Run local mapping inline after each keyframe (deterministic) instead of on its own thread.
   bool sequential = false;
+  /// In threaded runs: when the mapper is idle as a keyframe is handed to it, the frame returns
+  /// only once the mapper has inserted the keyframe with its new points, lines and planes (not
+  /// its fusion or bundle adjustment), so that the next frame is tracked against them, as in a
+  /// sequential run. The insertion takes a few milliseconds, the bundle adjustment that follows
+  /// tens; a busy mapper is not waited for (its bundle adjustment would have to yield first, and
+  /// the keyframe decisions, which ask whether the mapper is idle, would change: 114 keyframes
+  /// instead of 60 on Bonn crowd part 1). Measured in docs/cli.md ("The frame after a keyframe").
+  bool wait_for_keyframe_points = true;
   /// In threaded runs (`mcslam run` without --sequential), extract each frame's points, lines
   /// and planes on the reader's thread (with --realtime once the frame is due and the loop has
   /// taken the frame before) while the frame loop still tracks the frame before
