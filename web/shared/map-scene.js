@@ -134,7 +134,10 @@ export function keyframePath(map) {
 // ---------------------------------------------------------------- framing
 
 // Bounds that ignore the 1 % most extreme point and line-endpoint coordinates on each side
-// (stray landmarks), plus the planes and keyframes in full.
+// (stray landmarks), plus the planes' corners and the keyframes that lie within that box grown
+// by its own size on each side (all of them when there are no points or lines): a keyframe or a
+// plane corner further out is a stray too (a pose lost and found elsewhere), and framing it
+// would shrink the map to a speck.
 export function sceneBounds(parts) {
   const min = [Infinity, Infinity, Infinity];
   const max = [-Infinity, -Infinity, -Infinity];
@@ -154,10 +157,17 @@ export function sceneBounds(parts) {
       include(values[Math.ceil(0.99 * (n - 1))], axis);
     }
   }
+  const core = Number.isFinite(min[0]) ? { min: [...min], max: [...max] } : null;
+  const size = core ? Math.max(...[0, 1, 2].map((a) => core.max[a] - core.min[a])) : 0;
+  const near = (pos, i) => !core || [0, 1, 2].every((a) =>
+    pos[i + a] >= core.min[a] - size && pos[i + a] <= core.max[a] + size);
   for (const key of ['planes', 'keyframes']) {
     const pos = parts[key] && parts[key].positions;
     if (!pos) continue;
-    for (let i = 0; i + 2 < pos.length; i += 3) for (let axis = 0; axis < 3; axis++) include(pos[i + axis], axis);
+    for (let i = 0; i + 2 < pos.length; i += 3) {
+      if (!near(pos, i)) continue;
+      for (let axis = 0; axis < 3; axis++) include(pos[i + axis], axis);
+    }
   }
   if (!Number.isFinite(min[0])) return null;
   const center = new Vector3((min[0] + max[0]) / 2, (min[1] + max[1]) / 2, (min[2] + max[2]) / 2);
