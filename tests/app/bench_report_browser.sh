@@ -11,11 +11,8 @@ exe="$1"
 out="$2"
 here="$(cd "$(dirname "$0")" && pwd)"
 check="$here/../../web/report/check-report.mjs"
-skip() {
-  echo "skipped: $1"
-  if [ "${MCSLAM_STRICT_TESTS:-0}" = 1 ]; then echo "MCSLAM_STRICT_TESTS=1: may not skip"; exit 1; fi
-  exit 77
-}
+# shellcheck source=skip.sh
+source "$(dirname "$0")/skip.sh"
 command -v node > /dev/null 2>&1 || skip "no node"
 [ -f "$(dirname "$exe")/report/report.js" ] || skip "report scripts not built (run scripts/install-deps.sh)"
 

@@ -18,11 +18,8 @@
 set -uo pipefail
 exe="$1"
 out="$2"
-skip() {
-  echo "skipped: $1"
-  if [ "${MCSLAM_STRICT_TESTS:-0}" = 1 ]; then echo "MCSLAM_STRICT_TESTS=1: may not skip"; exit 1; fi
-  exit 77
-}
+# shellcheck source=skip.sh
+source "$(dirname "$0")/skip.sh"
 fail() { echo "FAILED: $*"; exit 1; }
 for tool in munged slurmctld slurmd sbatch squeue scancel python3; do
   command -v "$tool" > /dev/null 2>&1 ||

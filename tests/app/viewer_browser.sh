@@ -16,11 +16,8 @@ out="$2"
 shots="${3:-$out}"
 here="$(cd "$(dirname "$0")" && pwd)"
 check="$here/../../web/viewer/check-viewer.mjs"
-skip() {
-  echo "skipped: $1"
-  if [ "${MCSLAM_STRICT_TESTS:-0}" = 1 ]; then echo "MCSLAM_STRICT_TESTS=1: may not skip"; exit 1; fi
-  exit 77
-}
+# shellcheck source=skip.sh
+source "$(dirname "$0")/skip.sh"
 command -v node > /dev/null 2>&1 || skip "no node"
 [ -x "${CHROMIUM:-/usr/bin/chromium}" ] || skip "no chromium"
 [ -f "$(dirname "$exe")/share/mcslam/viewer/viewer.js" ] || skip "viewer scripts not built (run scripts/install-deps.sh)"

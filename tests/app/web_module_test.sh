@@ -8,11 +8,8 @@ test_file="$1"
 out="$2"
 here="$(cd "$(dirname "$0")" && pwd)"
 web="$here/../../web/report"
-skip() {
-  echo "skipped: $1"
-  if [ "${MCSLAM_STRICT_TESTS:-0}" = 1 ]; then echo "MCSLAM_STRICT_TESTS=1: may not skip"; exit 1; fi
-  exit 77
-}
+# shellcheck source=skip.sh
+source "$(dirname "$0")/skip.sh"
 command -v node > /dev/null 2>&1 || skip "no node"
 [ -x "$web/node_modules/.bin/esbuild" ] || skip "no esbuild in web/report (run scripts/install-deps.sh)"
 mkdir -p "$out"
