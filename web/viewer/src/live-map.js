@@ -60,8 +60,7 @@ export class LiveMap {
     this.controls.addEventListener('change', () => this.requestRender());
     this.parts = [];
     this.namedParts = null;  // the newest snapshot's parts by name (points, lines, ...)
-    this.fitted = false;
-    this.fittedTo = null;  // the bounds of the newest fit ({center, radius})
+    this.fittedTo = null;  // the bounds of the newest fit ({center, radius}); null: not framed yet
     this.follow = true;
     this.lastCameraPosition = null;
 
@@ -111,7 +110,7 @@ export class LiveMap {
     const geometry = new BufferGeometry();
     geometry.setAttribute('position', new Float32BufferAttribute(snapshot.trajectory, 3));
     this.trajectory.geometry = geometry;
-    if (!this.fitted) this.fitToMap();
+    if (!this.fittedTo) this.fitToMap();
     this.requestRender();
   }
 
@@ -119,12 +118,10 @@ export class LiveMap {
   // after the user has moved the view away or the map has grown beyond it).
   fitToMap() {
     const bounds = this.namedParts ? sceneBounds(this.namedParts) : null;
-    if (!bounds) return false;
+    if (!bounds) return;
     this.fit(bounds);
-    this.fitted = true;
     this.fittedTo = { center: bounds.center.toArray(), radius: bounds.radius };
     this.requestRender();
-    return true;
   }
 
   // Replaces a layer's object (null: nothing to draw); its visibility stays as switched.
