@@ -8,13 +8,20 @@ adjustment and smoothing), which no causal filter of the online pose can have. T
 per window of the run, both trajectories' RMS position error against the ground truth (each
 with its own rigid alignment of the whole run, as its ATE has) and the window's share of the
 online ATE's sum of squares: a window where the online error is high and the final low is one
-where the map at the time was off and was corrected later.
+where the map at the time was off and was corrected later. A third column smooths the online
+positions with every frame before and after them, with the model `trajectory.txt`'s smoothing
+uses (white-noise acceleration, 0.01 m^2/s^3, the positions' noise measured from their second
+differences; optim/trajectory_smoothing.hpp): not causal, it is the least error any motion model
+(filter or lag) can leave on these poses, so what it leaves is the map's error at the time.
 
-Usage: scripts/online_error.py [--bonn] [--window SECONDS] GROUNDTRUTH.txt RUN [RUN ...]
+Usage: scripts/online_error.py [--bonn] [--window SECONDS] [--noise MM] GROUNDTRUTH.txt RUN...
   RUN: an output folder of `mcslam run` (trajectory_online.txt and trajectory.txt in it).
   --bonn: the ground truth is Bonn RGB-D Dynamic's marker poses (converted to the camera as
           `mcslam eval --bonn` does).
   --window: the windows' length (default 2 s).
+  --noise: the online positions' noise the smoothing assumes, per axis (default: measured from
+           their second differences, as `trajectory.txt`'s smoothing measures it); a larger
+           noise smooths more.
 With several runs, each figure is the median over the runs (the windows follow the first run's
 frames). The ground truth is interpolated at the estimate's stamps, so the ATE can differ from
 `mcslam eval`'s (nearest stamp) by a few tenths of a millimetre.
@@ -43,6 +50,43 @@ def position_errors(gt, trajectory):
     return np.array(stamps), X - (P @ R.T + t)
 
 
+def smooth_positions(stamps, positions, q=0.01, outlier_sigmas=3.0, iterations=5, sigma=None):
+    """The positions (n x 3) smoothed as optim/trajectory_smoothing.cpp smooths them: least
+    squares of the positions against a white-noise-acceleration prior (density q) on their
+    second differences, the noise sigma from the second differences' median absolute deviation
+    less the motion's part (unless sigma is given, metres), poses beyond outlier_sigmas sigma
+    down-weighted. One segment."""
+    n = len(stamps)
+    if n < 12:
+        return positions.copy()
+    D = np.zeros((n - 2, n))
+    mean_dt = np.zeros(n - 2)
+    gain2 = np.zeros(n - 2)
+    for k in range(n - 2):
+        before = 1.0 / (stamps[k + 1] - stamps[k])
+        after = 1.0 / (stamps[k + 2] - stamps[k + 1])
+        D[k, k:k + 3] = (before, -(before + after), after)
+        mean_dt[k] = 0.5 * (1.0 / before + 1.0 / after)
+        gain2[k] = before ** 2 + (before + after) ** 2 + after ** 2
+    if sigma is None:
+        dv = D @ positions
+        spread = 1.4826 * np.median(np.abs(dv) / np.sqrt(gain2)[:, None])
+        sigma = np.sqrt(max(spread ** 2 - np.median(q * mean_dt / gain2), 1e-8))
+    motion = D.T @ np.diag(1.0 / (q * mean_dt)) @ D
+    weights = np.ones(n)
+    smoothed = positions
+    for _ in range(iterations):
+        W = np.diag(weights / sigma ** 2)
+        smoothed = np.linalg.solve(motion + W, W @ positions)
+        r = np.linalg.norm(smoothed - positions, axis=1)
+        new = np.where(r <= outlier_sigmas * sigma, 1.0,
+                       outlier_sigmas * sigma / np.maximum(r, 1e-12))
+        if np.max(np.abs(new - weights)) <= 1e-3:
+            break
+        weights = new
+    return smoothed
+
+
 def windows(stamps, length):
     """[start, end) index ranges of consecutive windows of `length` seconds."""
     out, start = [], 0
@@ -57,18 +101,39 @@ def rms(e):
     return float(np.sqrt(np.mean(np.sum(e ** 2, axis=1)))) if len(e) else float('nan')
 
 
-def analyse(gt, online, final, length):
+def analyse(gt, online, final, length, noise=None):
     """Per window of the online trajectory: (first stamp, last stamp, frames, online RMS, final
-    RMS, share of the online ATE's sum of squares); and both ATEs. Metres."""
+    RMS, share of the online ATE's sum of squares, smoothed online RMS); and the three ATEs
+    (online, final, smoothed online). Metres."""
     t_on, e_on = position_errors(gt, online)
     t_fi, e_fi = position_errors(gt, final)
+    smoothed = online.copy()
+    smoothed[:, 1:4] = smooth_positions(online[:, 0], online[:, 1:4], sigma=noise)
+    _, e_sm = position_errors(gt, smoothed)
     total = float(np.sum(e_on ** 2))
     rows = []
     for a, b in windows(t_on, length):
         in_final = (t_fi >= t_on[a] - 1e-6) & (t_fi <= t_on[b - 1] + 1e-6)
         rows.append((t_on[a], t_on[b - 1], b - a, rms(e_on[a:b]), rms(e_fi[in_final]),
-                     float(np.sum(e_on[a:b] ** 2)) / total if total > 0 else 0.0))
-    return rows, rms(e_on), rms(e_fi)
+                     float(np.sum(e_on[a:b] ** 2)) / total if total > 0 else 0.0,
+                     rms(e_sm[a:b])))
+    return rows, rms(e_on), rms(e_fi), rms(e_sm)
+
+
+def take_positive(args, flag, what, default):
+    """Removes `flag VALUE` from args and returns VALUE, which must be a positive number (the
+    default without the flag); ValueError names the flag."""
+    if flag not in args:
+        return default
+    i = args.index(flag)
+    try:
+        value = float(args[i + 1])
+    except (IndexError, ValueError):
+        raise ValueError(f'{flag} needs {what}') from None
+    if not value > 0:
+        raise ValueError(f'{flag} must be positive')
+    del args[i:i + 2]
+    return value
 
 
 def main(argv):
@@ -76,18 +141,14 @@ def main(argv):
     bonn = '--bonn' in args
     if bonn:
         args.remove('--bonn')
-    length = 2.0
-    if '--window' in args:
-        i = args.index('--window')
-        try:
-            length = float(args[i + 1])
-            del args[i:i + 2]
-        except (IndexError, ValueError):
-            print('online_error.py: --window needs a number of seconds', file=sys.stderr)
-            return 2
-        if not length > 0:
-            print('online_error.py: --window must be positive', file=sys.stderr)
-            return 2
+    try:
+        length = take_positive(args, '--window', 'a number of seconds', 2.0)
+        noise = take_positive(args, '--noise', 'a number of millimetres', None)
+    except ValueError as e:
+        print(f'online_error.py: {e}', file=sys.stderr)
+        return 2
+    if noise is not None:
+        noise /= 1000.0
     if len(args) < 2:
         print(__doc__.strip().split('\n\n')[1], file=sys.stderr)
         return 2
@@ -101,22 +162,25 @@ def main(argv):
         files = [pathlib.Path(run) / name for name in ('trajectory_online.txt', 'trajectory.txt')]
         try:
             online, final = (pn.load(f) for f in files)
-            results.append(analyse(gt, online, final, length))
+            results.append(analyse(gt, online, final, length, noise))
         except (OSError, ValueError, IndexError) as e:
             print(f'online_error.py: {run}: cannot score the run ({e})', file=sys.stderr)
             return 1
     first = results[0][0]
     t0 = first[0][0]
-    print(f'{"seconds":>13} {"poses":>9} {"online mm":>10} {"final mm":>9} {"share":>6}')
+    print(f'{"seconds":>13} {"poses":>9} {"online mm":>10} {"final mm":>9} {"share":>6} '
+          f'{"online smoothed mm":>19}')
     frame = 0
     for k, row in enumerate(first):
         per_run = [r[0][k] for r in results if k < len(r[0])]
         med = lambda j: float(np.median([r[j] for r in per_run]))  # noqa: E731
         print(f'{row[0] - t0:6.1f}-{row[1] - t0:6.1f} {frame:4d}-{frame + row[2] - 1:4d} '
-              f'{1000 * med(3):10.1f} {1000 * med(4):9.1f} {100 * med(5):5.0f}%')
+              f'{1000 * med(3):10.1f} {1000 * med(4):9.1f} {100 * med(5):5.0f}% '
+              f'{1000 * med(6):19.1f}')
         frame += row[2]
-    print(f'ATE (median of {len(results)}): online {1000 * np.median([r[1] for r in results]):.1f}'
-          f' mm, final {1000 * np.median([r[2] for r in results]):.1f} mm')
+    ate = lambda j: 1000 * float(np.median([r[j] for r in results]))  # noqa: E731
+    print(f'ATE (median of {len(results)}): online {ate(1):.1f} mm, final {ate(2):.1f} mm, '
+          f'online smoothed {ate(3):.1f} mm')
     return 0
 
 

@@ -39,8 +39,8 @@ def test_the_window_where_the_map_was_off_carries_the_online_error(tmp_path):
     oe = load('online_error')
     run = make_run(tmp_path)
     gt = oe.co.load_ground_truth(str(tmp_path / 'gt.txt'), False)
-    rows, online, final = oe.analyse(gt, oe.pn.load(run / 'trajectory_online.txt'),
-                                     oe.pn.load(run / 'trajectory.txt'), 2.0)
+    rows, online, final, smoothed = oe.analyse(gt, oe.pn.load(run / 'trajectory_online.txt'),
+                                               oe.pn.load(run / 'trajectory.txt'), 2.0)
     assert len(rows) == 6  # 11.9 s in windows of 2 s
     shares = [r[5] for r in rows]
     assert abs(sum(shares) - 1.0) < 1e-9
@@ -52,6 +52,28 @@ def test_the_window_where_the_map_was_off_carries_the_online_error(tmp_path):
     assert rows[worst][4] < 0.006  # the final trajectory is not off there
     assert online > 3 * final
     assert final < 0.005
+    # Smoothing with the frames after each pose takes the 2 mm noise (the last window, away from
+    # the shift: 4.5 -> 3.0 mm, the rest being the alignment's share of the shift) but not the
+    # map's 3 cm shift.
+    assert rows[-1][6] < rows[-1][3] - 0.001
+    assert rows[worst][6] > 0.8 * rows[worst][3]
+    assert smoothed > 0.9 * online
+
+
+def test_smoothing_a_noisy_path_keeps_the_path_and_measures_the_noise():
+    oe = load('online_error')
+    rng = np.random.default_rng(5)
+    t = np.arange(0.0, 10.0, 1.0 / 30.0)
+    truth = np.column_stack([np.sin(t), 0.5 * np.cos(0.7 * t), 0.2 * t])
+    noisy = truth + rng.normal(0, 0.003, truth.shape)
+    out = oe.smooth_positions(t, noisy)
+    before = np.sqrt(np.mean(np.sum((noisy - truth) ** 2, axis=1)))
+    after = np.sqrt(np.mean(np.sum((out - truth) ** 2, axis=1)))
+    assert after < 0.5 * before
+    # A pose 10 cm off is down-weighted, not followed.
+    noisy[150] += [0.1, 0.0, 0.0]
+    out = oe.smooth_positions(t, noisy)
+    assert np.linalg.norm(out[150] - truth[150]) < 0.01
 
 
 def test_prints_a_table_and_refuses_a_missing_run(tmp_path, capsys):
@@ -59,8 +81,11 @@ def test_prints_a_table_and_refuses_a_missing_run(tmp_path, capsys):
     run = make_run(tmp_path)
     assert oe.main([str(tmp_path / 'gt.txt'), str(run), '--window', '3']) == 0
     out = capsys.readouterr().out
-    assert 'online mm' in out and 'ATE (median of 1)' in out
+    assert 'online mm' in out and 'ATE (median of 1)' in out and 'online smoothed' in out
     assert len([line for line in out.splitlines() if '%' in line]) == 4
     assert oe.main([str(tmp_path / 'gt.txt'), str(tmp_path / 'nowhere')]) == 1
     assert 'nowhere' in capsys.readouterr().err
     assert oe.main([str(tmp_path / 'gt.txt'), str(run), '--window', '-1']) == 2
+    assert oe.main([str(tmp_path / 'gt.txt'), str(run), '--noise', 'x']) == 2
+    assert '--noise needs' in capsys.readouterr().err
+    assert oe.main([str(tmp_path / 'gt.txt'), str(run), '--noise', '5']) == 0
