@@ -138,7 +138,7 @@ TEST(System, TheOnlinePoseIsFilteredAndTheFinalTrajectoryIsNot) {
     // The rendered room's noise is the optimiser's own model (1 px, Kinect-like depth): its
     // covariance as it is. (At the default 6 this fast camera, 2.5 times the usual speed,
     // outruns the densities, adaptive as they are: 3.0 mm instead of 2.1, ATE 10.6 mm instead of
-    // 3.4; docs/cli.md.)
+    // 3.4; docs/tracking.md.)
     options.tracker.pose_filter.measurement_noise_scale = 1.0;
     System system(seq.camera, options);
     std::size_t given_out = 0;

@@ -39,10 +39,10 @@ struct PoseFilterOptions {
   /// On (the default): the pose given out is the frame's own pose fused with the motion model,
   /// with no lag. Default threaded runs with yolov8n_320, medians of 6 against 3 off: online RPE
   /// over one frame Bonn crowd part 1 9.7 -> 3.1 mm, from its frame 240 12.4 -> 4.4 mm,
-  /// freiburg1_rpy 6.3 -> 3.1 mm (docs/cli.md has the online ATE); the renders
+  /// freiburg1_rpy 6.3 -> 3.1 mm (docs/tracking.md has the online ATE); the renders
   /// (`--sequential`) 1.6-3.8 -> 0.9-1.7 mm and their online ATE within 0.1 mm, but for a camera
   /// accelerating at 2.4 m/s^2 RMS (2.5 times the usual speed: 3.3 -> 3.5 mm).
-  /// Off: each frame's own pose (docs/cli.md).
+  /// Off: each frame's own pose (docs/tracking.md).
   bool enabled = true;
   /// q_p, spectral density of the camera centre's acceleration per axis (m^2/s^3). The ground
   /// truth of the handheld sequences at hand measures 0.006 (freiburg1_rpy) and 0.003 (Bonn crowd
@@ -68,7 +68,7 @@ struct PoseFilterOptions {
   /// the noise changes with the scene over seconds. Measured against 0 (the optimiser's
   /// covariance as it is; default threaded, medians of 6 side by side): online RPE over one
   /// frame freiburg1_rpy 5.9 -> 3.1 mm, Bonn crowd part 1 4.8 -> 3.1, from frame 240 6.2 -> 4.4,
-  /// `--realtime` 4.6 -> 3.0; online ATE within the runs' spread (docs/cli.md).
+  /// `--realtime` 4.6 -> 3.0; online ATE within the runs' spread (docs/tracking.md).
   double noise_window = 1.0;
   /// Normalised innovation squared (6 dof) above which a measurement counts less (Huber): its
   /// information is multiplied by sqrt(downweight_chi2 / nis). 12.59 is chi-square's 95 % point:

@@ -24,7 +24,7 @@ struct TrackerOptions {
   /// where structured-light cameras' depth ends (Bonn crowd part 1 has none beyond 4.4 m). The
   /// depth's error grows as z^2 (1.4e-3 z^2: 3 cm at 4.6 m), as the depth residual's weight
   /// already assumes. ORB-SLAM2's ThDepth is 40 (3.1 m), which leaves out 37 % of Bonn crowd part
-  /// 1's depth pixels; docs/cli.md has the measurements.
+  /// 1's depth pixels; docs/tracking.md has the measurements.
   double close_depth_factor = 60.0;
   /// The range of ORB-SLAM2's keyframe rule "fewer than close_tracked_threshold close points
   /// tracked and more than close_untracked_threshold not" (times bf / fx metres), kept at
@@ -100,13 +100,13 @@ struct TrackerOptions {
   /// with depth. 0.85 gives the mapper a keyframe as soon as it is idle and the view has changed
   /// (Bonn crowd part 1, threaded: `trajectory.txt` 12.3 -> 10.8 mm, online 14.1 -> 13.4, 0.97x the
   /// frame rate), a gain from one window of one sequence (elsewhere neutral or against), and 2-3
-  /// times the keyframes where the mapper keeps up; docs/cli.md has the measurements.
+  /// times the keyframes where the mapper keeps up; docs/tracking.md has the measurements.
   double keyframe_ref_ratio = 0.75;
   /// A keyframe also once this many seconds have passed since the last one, whatever share of
   /// the reference's landmarks the frame still tracks (0: off, ORB-SLAM2's rule alone). Panning
   /// back over mapped ground the rule alone leaves Bonn crowd part 1 1.4-1.8 s without one; 0.5
   /// lowers its online ATE 14.2 -> 13.1 mm (--realtime's 14.6 -> 14.1) at 0.95x the frame rate,
-  /// but the synthetic dynamic scenes' online pose gets worse (0.1-0.7 mm); docs/cli.md.
+  /// but the synthetic dynamic scenes' online pose gets worse (0.1-0.7 mm); docs/tracking.md.
   double keyframe_interval = 0.0;
   int close_tracked_threshold = 100;
   int close_untracked_threshold = 70;
@@ -298,7 +298,7 @@ struct SystemOptions {
   /// sequential run. The insertion takes a few milliseconds, the bundle adjustment that follows
   /// tens; a busy mapper is not waited for (its bundle adjustment would have to yield first, and
   /// the keyframe decisions, which ask whether the mapper is idle, would change: 114 keyframes
-  /// instead of 60 on Bonn crowd part 1). Measured in docs/cli.md ("The frame after a keyframe").
+  /// instead of 60 on Bonn crowd part 1). Measured in docs/tracking.md ("The frame after a keyframe").
   bool wait_for_keyframe_points = true;
   /// In threaded runs (`mcslam run` without --sequential), extract each frame's points, lines
   /// and planes on the reader's thread (with --realtime once the frame is due and the loop has
