@@ -298,7 +298,8 @@ struct SystemOptions {
   /// sequential run. The insertion takes a few milliseconds, the bundle adjustment that follows
   /// tens; a busy mapper is not waited for (its bundle adjustment would have to yield first, and
   /// the keyframe decisions, which ask whether the mapper is idle, would change: 114 keyframes
-  /// instead of 60 on Bonn crowd part 1). Measured in docs/tracking.md ("The frame after a keyframe").
+  /// instead of 60 on Bonn crowd part 1). Measured in docs/tracking.md ("The frame after a
+  /// keyframe").
   bool wait_for_keyframe_points = true;
   /// In threaded runs (`mcslam run` without --sequential), extract each frame's points, lines
   /// and planes on the reader's thread (with --realtime once the frame is due and the loop has
