@@ -8,11 +8,12 @@ adjustment and smoothing), which no causal filter of the online pose can have. T
 per window of the run, both trajectories' RMS position error against the ground truth (each
 with its own rigid alignment of the whole run, as its ATE has) and the window's share of the
 online ATE's sum of squares: a window where the online error is high and the final low is one
-where the map at the time was off and was corrected later. A third column smooths the online
+where the map at the time was off and was corrected later. A last column smooths the online
 positions with every frame before and after them, with the model `trajectory.txt`'s smoothing
 uses (white-noise acceleration, 0.01 m^2/s^3, the positions' noise measured from their second
-differences; optim/trajectory_smoothing.hpp): not causal, it is the least error any motion model
-(filter or lag) can leave on these poses, so what it leaves is the map's error at the time.
+differences; optim/trajectory_smoothing.hpp): not causal, so no filter or fixed lag of that model
+can leave less error on these poses; what it leaves is the error of the map they were solved
+against at the time.
 
 Usage: scripts/online_error.py [--bonn] [--window SECONDS] [--noise MM] GROUNDTRUTH.txt RUN...
   RUN: an output folder of `mcslam run` (trajectory_online.txt and trajectory.txt in it).
@@ -50,41 +51,85 @@ def position_errors(gt, trajectory):
     return np.array(stamps), X - (P @ R.T + t)
 
 
-def smooth_positions(stamps, positions, q=0.01, outlier_sigmas=3.0, iterations=5, sigma=None):
+def solve_banded(a0, a1, a2, rhs):
+    """Solves A x = rhs for a symmetric positive definite A with two bands off the diagonal
+    (a0[i] = A[i, i], a1[i] = A[i, i + 1], a2[i] = A[i, i + 2]) by its banded Cholesky factor:
+    linear in the number of poses."""
+    n = len(a0)
+    d, l1, l2 = np.zeros(n), np.zeros(n), np.zeros(n)  # L[i, i], L[i + 1, i], L[i + 2, i]
+    for i in range(n):
+        v = a0[i] - (l1[i - 1] ** 2 if i >= 1 else 0.0) - (l2[i - 2] ** 2 if i >= 2 else 0.0)
+        d[i] = np.sqrt(v)
+        if i + 1 < n:
+            l1[i] = (a1[i] - (l2[i - 1] * l1[i - 1] if i >= 1 else 0.0)) / d[i]
+        if i + 2 < n:
+            l2[i] = a2[i] / d[i]
+    y = np.array(rhs, dtype=float)
+    for i in range(n):
+        if i >= 1:
+            y[i] -= l1[i - 1] * y[i - 1]
+        if i >= 2:
+            y[i] -= l2[i - 2] * y[i - 2]
+        y[i] /= d[i]
+    for i in range(n - 1, -1, -1):
+        if i + 1 < n:
+            y[i] -= l1[i] * y[i + 1]
+        if i + 2 < n:
+            y[i] -= l2[i] * y[i + 2]
+        y[i] /= d[i]
+    return y
+
+
+def smooth_positions(stamps, positions, q=0.01, outlier_sigmas=3.0, iterations=5, sigma=None,
+                     max_gap=1.0):
     """The positions (n x 3) smoothed as optim/trajectory_smoothing.cpp smooths them: least
     squares of the positions against a white-noise-acceleration prior (density q) on their
     second differences, the noise sigma from the second differences' median absolute deviation
     less the motion's part (unless sigma is given, metres), poses beyond outlier_sigmas sigma
-    down-weighted. One segment."""
-    n = len(stamps)
-    if n < 12:
+    down-weighted, the path cut where no pose came for max_gap seconds."""
+    stamps = np.asarray(stamps, dtype=float)
+    cuts = [0] + [i for i in range(1, len(stamps)) if stamps[i] - stamps[i - 1] > max_gap]
+    segments = [(a, b) for a, b in zip(cuts, cuts[1:] + [len(stamps)]) if b - a >= 3]
+    ops = []
+    for a, b in segments:
+        before = 1.0 / np.diff(stamps[a:b])[:-1]
+        after = 1.0 / np.diff(stamps[a:b])[1:]
+        coeffs = np.column_stack([before, -(before + after), after])
+        ops.append((a, b, coeffs, 0.5 * (1.0 / before + 1.0 / after),
+                    np.sum(coeffs ** 2, axis=1)))
+    if sum(len(op[3]) for op in ops) < 10:  # as kMinSecondDifferences
         return positions.copy()
-    D = np.zeros((n - 2, n))
-    mean_dt = np.zeros(n - 2)
-    gain2 = np.zeros(n - 2)
-    for k in range(n - 2):
-        before = 1.0 / (stamps[k + 1] - stamps[k])
-        after = 1.0 / (stamps[k + 2] - stamps[k + 1])
-        D[k, k:k + 3] = (before, -(before + after), after)
-        mean_dt[k] = 0.5 * (1.0 / before + 1.0 / after)
-        gain2[k] = before ** 2 + (before + after) ** 2 + after ** 2
     if sigma is None:
-        dv = D @ positions
-        spread = 1.4826 * np.median(np.abs(dv) / np.sqrt(gain2)[:, None])
-        sigma = np.sqrt(max(spread ** 2 - np.median(q * mean_dt / gain2), 1e-8))
-    motion = D.T @ np.diag(1.0 / (q * mean_dt)) @ D
-    weights = np.ones(n)
-    smoothed = positions
-    for _ in range(iterations):
-        W = np.diag(weights / sigma ** 2)
-        smoothed = np.linalg.solve(motion + W, W @ positions)
-        r = np.linalg.norm(smoothed - positions, axis=1)
-        new = np.where(r <= outlier_sigmas * sigma, 1.0,
-                       outlier_sigmas * sigma / np.maximum(r, 1e-12))
-        if np.max(np.abs(new - weights)) <= 1e-3:
-            break
-        weights = new
-    return smoothed
+        normalised, motion = [], []
+        for a, b, c, mean_dt, gain2 in ops:
+            x = positions[a:b]
+            dv = c[:, :1] * x[:-2] + c[:, 1:2] * x[1:-1] + c[:, 2:] * x[2:]
+            normalised.append((np.abs(dv) / np.sqrt(gain2)[:, None]).ravel())
+            motion.append(q * mean_dt / gain2)
+        spread = 1.4826 * np.median(np.concatenate(normalised))
+        sigma = np.sqrt(max(spread ** 2 - np.median(np.concatenate(motion)), 1e-8))
+    out = positions.copy()
+    for a, b, c, mean_dt, _ in ops:
+        n, y = b - a, positions[a:b]
+        prior = 1.0 / (q * mean_dt)
+        m0, m1, m2 = np.zeros(n), np.zeros(n), np.zeros(n)  # the prior's bands
+        for r in range(3):
+            np.add.at(m0, np.arange(n - 2) + r, prior * c[:, r] ** 2)
+        for r in range(2):
+            np.add.at(m1, np.arange(n - 2) + r, prior * c[:, r] * c[:, r + 1])
+        np.add.at(m2, np.arange(n - 2), prior * c[:, 0] * c[:, 2])
+        weights = np.ones(n)
+        for _ in range(iterations):
+            w = weights / sigma ** 2
+            smoothed = solve_banded(m0 + w, m1, m2, w[:, None] * y)
+            r = np.linalg.norm(smoothed - y, axis=1)
+            new = np.where(r <= outlier_sigmas * sigma, 1.0,
+                           outlier_sigmas * sigma / np.maximum(r, 1e-12))
+            if np.max(np.abs(new - weights)) <= 1e-3:
+                break
+            weights = new
+        out[a:b] = smoothed
+    return out
 
 
 def windows(stamps, length):

@@ -89,3 +89,28 @@ def test_prints_a_table_and_refuses_a_missing_run(tmp_path, capsys):
     assert oe.main([str(tmp_path / 'gt.txt'), str(run), '--noise', 'x']) == 2
     assert '--noise needs' in capsys.readouterr().err
     assert oe.main([str(tmp_path / 'gt.txt'), str(run), '--noise', '5']) == 0
+
+
+def test_the_banded_solve_is_the_dense_one():
+    oe = load('online_error')
+    rng = np.random.default_rng(7)
+    n = 40
+    a0, a1, a2 = 6.0 + rng.random(n), rng.random(n) - 0.5, rng.random(n) - 0.5
+    A = np.diag(a0) + np.diag(a1[:-1], 1) + np.diag(a1[:-1], -1) + np.diag(a2[:-2], 2) + \
+        np.diag(a2[:-2], -2)
+    rhs = rng.normal(size=(n, 3))
+    assert np.allclose(oe.solve_banded(a0, a1, a2, rhs), np.linalg.solve(A, rhs))
+
+
+def test_a_gap_cuts_the_path():
+    # Two stretches of a still camera 1.2 s apart and 1 m from each other (a relocalisation
+    # after a loss): each is smoothed on its own, so their ends stay where they were; smoothed
+    # as one path, the ends lean towards each other.
+    oe = load('online_error')
+    rng = np.random.default_rng(9)
+    t = np.concatenate([np.arange(0.0, 3.0, 1.0 / 30.0), 4.2 + np.arange(0.0, 3.0, 1.0 / 30.0)])
+    truth = np.where(t[:, None] < 3.5, 0.0, 1.0) * np.array([1.0, 0.0, 0.0])
+    noisy = truth + rng.normal(0, 0.002, truth.shape)
+    worst = lambda gap: np.max(np.linalg.norm(  # noqa: E731
+        oe.smooth_positions(t, noisy, max_gap=gap) - truth, axis=1))
+    assert worst(1.0) < 0.0045 < 0.005 < worst(10.0)
